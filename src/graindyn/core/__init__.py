@@ -1,0 +1,1 @@
+"""State, materials, neighbour search, walls, integrators and the compiled time loop."""

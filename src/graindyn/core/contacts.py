@@ -1,0 +1,180 @@
+"""Contact forces: pair geometry -> physics.contact_force -> per-contact arrays, and the
+deterministic gather of those arrays onto grains (each grain sums its own contacts in
+fixed order: no atomics, same numbers for the same thread count).
+
+Geometry (Oquendo Eq. 3-4): n = (r_i - r_j)/|r_i - r_j|, overlap h = R_i + R_j - |r_i - r_j|,
+the contact point sits at R'_i = R_i - h R_j/(R_i + R_j) from grain i, and the relative
+velocity of i at that point is v_i - v_j - (R'_i w_i + R'_j w_j) x n.
+"""
+import math
+
+from .._jit import parallel, prange, scalar
+from ..physics.contact import contact_force
+from .neighbors import min_image
+from .walls import wall_distance
+
+
+@scalar
+def contact_response(model, p, overlap, lever_i, lever_j, r_eff, m_eff, nx, ny, nz,
+                     dvx, dvy, dvz, wx, wy, wz, history, dt):
+    """Force on i (3) [N] and the lever part of the torques on i and j, (n x f_t) scaled
+    by -R'_i and -R'_j, plus the energies dissipated [J].  w = R'_i w_i + R'_j w_j [m/s]."""
+    vx = dvx - (wy * nz - wz * ny)
+    vy = dvy - (wz * nx - wx * nz)
+    vz = dvz - (wx * ny - wy * nx)
+    vn = vx * nx + vy * ny + vz * nz
+    fn, ftx, fty, ftz, dn, dt_ = contact_force(model, p, overlap, r_eff, m_eff, nx, ny, nz, vn,
+                                               vx - vn * nx, vy - vn * ny, vz - vn * nz,
+                                               history, dt)
+    cx = ny * ftz - nz * fty
+    cy = nz * ftx - nx * ftz
+    cz = nx * fty - ny * ftx
+    return (fn * nx + ftx, fn * ny + fty, fn * nz + ftz,
+            -lever_i * cx, -lever_i * cy, -lever_i * cz,
+            -lever_j * cx, -lever_j * cy, -lever_j * cz, dn, dt_)
+
+
+@parallel
+def pair_forces(model, params, positions, velocities, angular_velocities, radii, masses,
+                materials, fixed, periodic_flag, periodic_length, start, partners, history,
+                pair_force, pair_torque_i, pair_torque_j, max_overlap, dt):
+    """Forces of every listed pair; zero (and history reset) for pairs not touching.
+
+    max_overlap[i] receives the largest overlap / min(R_i, R_j) of grain i's pairs.
+    Returns the energies dissipated in the step, normal and tangential [J].
+    """
+    n = positions.shape[0]
+    dissipated_n = 0.0
+    dissipated_t = 0.0
+    for i in prange(n):
+        worst = 0.0
+        for k in range(start[i], start[i + 1]):
+            j = partners[k]
+            dx = min_image(positions[i, 0] - positions[j, 0], 0, periodic_flag, periodic_length)
+            dy = min_image(positions[i, 1] - positions[j, 1], 1, periodic_flag, periodic_length)
+            dz = min_image(positions[i, 2] - positions[j, 2], 2, periodic_flag, periodic_length)
+            r_i = radii[i]
+            r_j = radii[j]
+            rsum = r_i + r_j
+            d2 = dx * dx + dy * dy + dz * dz
+            if d2 >= rsum * rsum:
+                for h in range(history.shape[1]):
+                    history[k, h] = 0.0
+                for d in range(3):
+                    pair_force[k, d] = 0.0
+                    pair_torque_i[k, d] = 0.0
+                    pair_torque_j[k, d] = 0.0
+                continue
+            dist = math.sqrt(d2)
+            overlap = rsum - dist
+            worst = max(worst, overlap / min(r_i, r_j))
+            if fixed[j]:
+                m_eff = masses[i]
+            elif fixed[i]:
+                m_eff = masses[j]
+            else:
+                m_eff = masses[i] * masses[j] / (masses[i] + masses[j])
+            lever_i = r_i - overlap * r_j / rsum
+            lever_j = r_j - overlap * r_i / rsum
+            out = contact_response(
+                model, params[materials[i], materials[j]], overlap, lever_i, lever_j,
+                r_i * r_j / rsum, m_eff, dx / dist, dy / dist, dz / dist,
+                velocities[i, 0] - velocities[j, 0], velocities[i, 1] - velocities[j, 1],
+                velocities[i, 2] - velocities[j, 2],
+                lever_i * angular_velocities[i, 0] + lever_j * angular_velocities[j, 0],
+                lever_i * angular_velocities[i, 1] + lever_j * angular_velocities[j, 1],
+                lever_i * angular_velocities[i, 2] + lever_j * angular_velocities[j, 2],
+                history[k], dt)
+            for d in range(3):
+                pair_force[k, d] = out[d]
+                pair_torque_i[k, d] = out[3 + d]
+                pair_torque_j[k, d] = out[6 + d]
+            dissipated_n += out[9]
+            dissipated_t += out[10]
+        max_overlap[i] = worst
+    return dissipated_n, dissipated_t
+
+
+@parallel
+def wall_forces(model, params, positions, velocities, angular_velocities, radii, masses,
+                materials, wall_kind, wall_geometry, wall_offset, wall_velocity, wall_material,
+                wall_start, wall_ids, wall_history, wall_force, wall_torque, max_overlap, dt):
+    """Forces of the walls on grains, per grain-wall candidate (R_j = infinity).
+
+    Returns the energies dissipated in the step, normal and tangential [J].
+    """
+    n = positions.shape[0]
+    dissipated_n = 0.0
+    dissipated_t = 0.0
+    for i in prange(n):
+        worst = max_overlap[i]
+        for q in range(wall_start[i], wall_start[i + 1]):
+            w = wall_ids[q]
+            dist, nx, ny, nz = wall_distance(wall_kind[w], wall_geometry[w], wall_offset[w],
+                                             positions[i, 0], positions[i, 1], positions[i, 2])
+            r_i = radii[i]
+            overlap = r_i - dist
+            if overlap <= 0.0:
+                for h in range(wall_history.shape[1]):
+                    wall_history[q, h] = 0.0
+                for d in range(3):
+                    wall_force[q, d] = 0.0
+                    wall_torque[q, d] = 0.0
+                continue
+            worst = max(worst, overlap / r_i)
+            lever = r_i - overlap
+            out = contact_response(
+                model, params[materials[i], wall_material[w]], overlap, lever, 0.0, r_i,
+                masses[i], nx, ny, nz,
+                velocities[i, 0] - wall_velocity[w, 0], velocities[i, 1] - wall_velocity[w, 1],
+                velocities[i, 2] - wall_velocity[w, 2],
+                lever * angular_velocities[i, 0], lever * angular_velocities[i, 1],
+                lever * angular_velocities[i, 2], wall_history[q], dt)
+            for d in range(3):
+                wall_force[q, d] = out[d]
+                wall_torque[q, d] = out[3 + d]
+            dissipated_n += out[9]
+            dissipated_t += out[10]
+        max_overlap[i] = worst
+    return dissipated_n, dissipated_t
+
+
+@parallel
+def gather(masses, gravity, start, reverse_start, reverse_pairs, pair_force, pair_torque_i,
+           pair_torque_j, wall_start, wall_force, wall_torque, forces, torques):
+    """forces[i] = m_i g + sum of its pair and wall contact forces, in fixed order."""
+    for i in prange(masses.size):
+        fx = masses[i] * gravity[0]
+        fy = masses[i] * gravity[1]
+        fz = masses[i] * gravity[2]
+        tx = 0.0
+        ty = 0.0
+        tz = 0.0
+        for k in range(start[i], start[i + 1]):
+            fx += pair_force[k, 0]
+            fy += pair_force[k, 1]
+            fz += pair_force[k, 2]
+            tx += pair_torque_i[k, 0]
+            ty += pair_torque_i[k, 1]
+            tz += pair_torque_i[k, 2]
+        for s in range(reverse_start[i], reverse_start[i + 1]):
+            k = reverse_pairs[s]
+            fx -= pair_force[k, 0]
+            fy -= pair_force[k, 1]
+            fz -= pair_force[k, 2]
+            tx += pair_torque_j[k, 0]
+            ty += pair_torque_j[k, 1]
+            tz += pair_torque_j[k, 2]
+        for q in range(wall_start[i], wall_start[i + 1]):
+            fx += wall_force[q, 0]
+            fy += wall_force[q, 1]
+            fz += wall_force[q, 2]
+            tx += wall_torque[q, 0]
+            ty += wall_torque[q, 1]
+            tz += wall_torque[q, 2]
+        forces[i, 0] = fx
+        forces[i, 1] = fy
+        forces[i, 2] = fz
+        torques[i, 0] = tx
+        torques[i, 1] = ty
+        torques[i, 2] = tz

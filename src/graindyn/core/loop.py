@@ -1,0 +1,202 @@
+"""The compiled time loop: many steps per call, Python only between chunks.
+
+One step (the order is fixed here and nowhere else):
+  1. rebuild the neighbour lists if some grain (or wall) may have moved more than
+     half the skin by the end of the step; on capacity overflow return GROW before
+     anything has changed, so the caller grows the arrays and calls again;
+  2. for each integrator stage: drift/predict, move prescribed walls, contact forces
+     (pairs, then walls), gather onto grains, correct;
+  3. time += dt, step += 1;
+  4. every ``check_interval`` steps: NaN, excessive overlap, and the stop condition.
+Dissipated energies and the work of moving walls are accumulated in ``clock``.
+"""
+import math
+
+import numpy as np
+
+from .._jit import kernel
+from .contacts import gather, pair_forces, wall_forces
+from .integrators import STAGES, after_force, before_force
+from .neighbors import max_displacement, rebuild
+from .walls import walls_advance
+
+# return codes of run_chunk
+DONE, CONDITION, GROW, NAN, OVERLAP = 0, 1, 2, 3, 4
+# clock (float64) slots
+TIME, DT, SKIN, GX, GY, GZ, COND_VALUE, OVERLAP_LIMIT, DISS_N, DISS_T, WALL_WORK = range(11)
+# counters (int64) slots
+STEP, DIM, INTEGRATOR, REBUILDS, FORCE_REBUILD, CHECK_INTERVAL, COND_KIND, PRIMED, \
+    NEED_PAIRS, NEED_WALLS = range(10)
+# compiled stop conditions
+NO_CONDITION, MAX_SPEED_BELOW, ENERGY_RATIO_BELOW = 0, 1, 2
+
+
+def new_clock(dt, skin, gravity):
+    """The float64 clock array of a simulation."""
+    clock = np.zeros(11)
+    clock[DT] = dt
+    clock[SKIN] = skin
+    clock[GX:GZ + 1] = gravity
+    clock[OVERLAP_LIMIT] = np.inf
+    return clock
+
+
+@kernel
+def evaluate_forces(model, params, grains, pairs, walls, periodic, gravity, dt):
+    """All contact forces and their gather; returns (normal, tangential) dissipation [J]."""
+    (positions, velocities, angular_velocities, orientations, forces, torques, accelerations,
+     angular_accelerations, radii, masses, inertias, materials, fixed, reference_positions,
+     max_overlap) = grains
+    (start, partners, history, scratch_start, scratch_partners, scratch_history,
+     reverse_start, reverse_pairs, pair_force, pair_torque_i, pair_torque_j) = pairs
+    (kind, geometry, motion_kind, motion, base, offset, velocity, material, force,
+     reference_offset, wall_start, wall_ids, wall_history, scratch_wall_start,
+     scratch_wall_ids, scratch_wall_history, contact_force, contact_torque) = walls
+    flag, lo, length = periodic
+    dn, dt_ = pair_forces(model, params, positions, velocities, angular_velocities, radii,
+                          masses, materials, fixed, flag, length, start, partners, history,
+                          pair_force, pair_torque_i, pair_torque_j, max_overlap, dt)
+    wn, wt = wall_forces(model, params, positions, velocities, angular_velocities, radii,
+                         masses, materials, kind, geometry, offset, velocity, material,
+                         wall_start, wall_ids, wall_history, contact_force, contact_torque,
+                         max_overlap, dt)
+    gather(masses, gravity, start, reverse_start, reverse_pairs, pair_force, pair_torque_i,
+           pair_torque_j, wall_start, contact_force, contact_torque, forces, torques)
+    force[:] = 0.0
+    power = 0.0
+    for i in range(masses.size):
+        for q in range(wall_start[i], wall_start[i + 1]):
+            w = wall_ids[q]
+            for d in range(3):
+                force[w, d] -= contact_force[q, d]
+                power += contact_force[q, d] * velocity[w, d]
+    return dn + wn, dt_ + wt, power
+
+
+@kernel
+def _energies(velocities, angular_velocities, positions, masses, inertias, fixed, gravity):
+    """Kinetic energy [J] of free grains and their potential energy [J] above the lowest."""
+    g = math.sqrt(gravity[0] ** 2 + gravity[1] ** 2 + gravity[2] ** 2)
+    kinetic = 0.0
+    low = np.inf
+    for i in range(masses.size):
+        if fixed[i]:
+            continue
+        v2 = 0.0
+        w2 = 0.0
+        for d in range(3):
+            v2 += velocities[i, d] ** 2
+            w2 += angular_velocities[i, d] ** 2
+        kinetic += 0.5 * masses[i] * v2 + 0.5 * inertias[i] * w2
+        if g > 0.0:
+            low = min(low, -(positions[i, 0] * gravity[0] + positions[i, 1] * gravity[1]
+                             + positions[i, 2] * gravity[2]) / g)
+    potential = 0.0
+    if g > 0.0:
+        for i in range(masses.size):
+            if not fixed[i]:
+                h = -(positions[i, 0] * gravity[0] + positions[i, 1] * gravity[1]
+                      + positions[i, 2] * gravity[2]) / g
+                potential += masses[i] * g * (h - low)
+    return kinetic, potential
+
+
+@kernel
+def _checks(grains, counters, clock):
+    """NaN, overlap and stop-condition checks; returns a status code."""
+    (positions, velocities, angular_velocities, orientations, forces, torques, accelerations,
+     angular_accelerations, radii, masses, inertias, materials, fixed, reference_positions,
+     max_overlap) = grains
+    vmax = 0.0
+    for i in range(masses.size):
+        v2 = 0.0
+        for d in range(3):
+            if not (math.isfinite(positions[i, d]) and math.isfinite(velocities[i, d])
+                    and math.isfinite(forces[i, d])):
+                return NAN
+            v2 += velocities[i, d] ** 2
+        if not fixed[i]:
+            vmax = max(vmax, v2)
+    if max_overlap.size > 0 and max_overlap.max() > clock[OVERLAP_LIMIT]:
+        return OVERLAP
+    kind = counters[COND_KIND]
+    if kind == MAX_SPEED_BELOW and math.sqrt(vmax) < clock[COND_VALUE]:
+        return CONDITION
+    if kind == ENERGY_RATIO_BELOW:
+        kinetic, potential = _energies(velocities, angular_velocities, positions, masses,
+                                       inertias, fixed, clock[GX:GZ + 1])
+        if kinetic <= clock[COND_VALUE] * potential:
+            return CONDITION
+    return DONE
+
+
+@kernel
+def run_chunk(model, params, grains, pairs, walls, periodic, clock, counters, block_scratch,
+              nsteps):
+    """Advance up to ``nsteps`` steps; returns (status, steps done)."""
+    (positions, velocities, angular_velocities, orientations, forces, torques, accelerations,
+     angular_accelerations, radii, masses, inertias, materials, fixed, reference_positions,
+     max_overlap) = grains
+    (start, partners, history, scratch_start, scratch_partners, scratch_history,
+     reverse_start, reverse_pairs, pair_force, pair_torque_i, pair_torque_j) = pairs
+    (kind, geometry, motion_kind, motion, base, offset, velocity, material, force,
+     reference_offset, wall_start, wall_ids, wall_history, scratch_wall_start,
+     scratch_wall_ids, scratch_wall_history, contact_force, contact_torque) = walls
+    flag, lo, length = periodic
+    dt = clock[DT]
+    skin = clock[SKIN]
+    gravity = clock[GX:GZ + 1]
+    integrator = counters[INTEGRATOR]
+    for s in range(nsteps):
+        rebuild_now = counters[FORCE_REBUILD] != 0
+        if not rebuild_now:
+            grain_move = max_displacement(positions, reference_positions, velocities,
+                                          accelerations, dt, flag, length, block_scratch)
+            wall_move = 0.0
+            for w in range(kind.size):
+                d2 = 0.0
+                v2 = 0.0
+                for d in range(3):
+                    d2 += (offset[w, d] - reference_offset[w, d]) ** 2
+                    v2 += velocity[w, d] ** 2
+                wall_move = max(wall_move, math.sqrt(d2) + 2.0 * math.sqrt(v2) * dt)
+            rebuild_now = grain_move + max(grain_move, wall_move) > skin
+        if rebuild_now:
+            needed, wall_needed = rebuild(
+                positions, radii, skin, flag, lo, length, start, partners, history,
+                scratch_start, scratch_partners, scratch_history, reverse_start, reverse_pairs,
+                kind, geometry, offset, wall_start, wall_ids, wall_history, scratch_wall_start,
+                scratch_wall_ids, scratch_wall_history, reference_positions, reference_offset)
+            if needed > partners.size or wall_needed > wall_ids.size:
+                counters[NEED_PAIRS] = needed
+                counters[NEED_WALLS] = wall_needed
+                counters[FORCE_REBUILD] = 1
+                return GROW, s
+            counters[FORCE_REBUILD] = 0
+            counters[REBUILDS] += 1
+        if counters[PRIMED] == 0:
+            evaluate_forces(model, params, grains, pairs, walls, periodic, gravity, 0.0)
+            after_force(integrator, 0, 0.0, counters[DIM], forces, torques, masses, inertias,
+                        velocities, angular_velocities, accelerations, angular_accelerations,
+                        fixed)
+            counters[PRIMED] = 1
+        for stage in range(STAGES[integrator]):
+            before_force(integrator, stage, dt, positions, velocities, angular_velocities,
+                         orientations, accelerations, angular_accelerations, fixed)
+            if stage == 0:
+                walls_advance(motion_kind, motion, base, offset, velocity, clock[TIME], dt)
+            dn, dtan, power = evaluate_forces(model, params, grains, pairs, walls, periodic,
+                                              gravity, dt)
+            clock[DISS_N] += dn
+            clock[DISS_T] += dtan
+            clock[WALL_WORK] += power * dt
+            after_force(integrator, stage, dt, counters[DIM], forces, torques, masses,
+                        inertias, velocities, angular_velocities, accelerations,
+                        angular_accelerations, fixed)
+        clock[TIME] += dt
+        counters[STEP] += 1
+        if counters[STEP] % counters[CHECK_INTERVAL] == 0 or s == nsteps - 1:
+            status = _checks(grains, counters, clock)
+            if status != DONE:
+                return status, s + 1
+    return DONE, nsteps

@@ -1,0 +1,256 @@
+"""Simulation: state + materials + contact model + walls + integrator, run in compiled
+chunks with Python triggers in between.
+
+>>> sim = Simulation(state, [Material(...)], ContactModel("hertz", "tsuji", "mindlin"),
+...                  walls=box((0, 0, 0), (L, L, H)), dt=1e-6)      # doctest: +SKIP
+>>> sim.run(time=0.5, until=MaxSpeedBelow(1e-3))                      # doctest: +SKIP
+"""
+import math
+
+import numpy as np
+
+from . import loop
+from .integrators import integrator_id
+from .species import ContactModel, Material
+from .timestep import time_step_report
+from .triggers import Periodic
+from .walls import Walls
+
+
+class SimulationError(RuntimeError):
+    """A run stopped because the physics broke down (NaN, excessive overlap)."""
+
+
+class Simulation:
+    """A soft-particle DEM simulation (SI units).
+
+    state : State;  materials : list of Material (grain and wall materials by index)
+    model : ContactModel;  walls : list of Plane/Cylinder;  periodic : list of Periodic
+    gravity : (3,) [m/s^2];  dt [s] (None: the suggested step);  skin [m] (None: 0.1 of
+    the mean diameter);  allow_large_dt: accept a step above the safe fraction.
+    overlap_limit : stop when some overlap exceeds this fraction of the smaller radius.
+    check_interval : steps between NaN/overlap/stop-condition checks.
+    """
+
+    def __init__(self, state, materials, model=None, walls=(), periodic=(),
+                 gravity=(0.0, 0.0, -9.81), dt=None, skin=None, integrator="velocity_verlet",
+                 allow_large_dt=False, overlap_limit=0.2, check_interval=100):
+        self.state = state
+        self.materials = list(materials) if materials else [Material()]
+        self.model = model or ContactModel()
+        n_mat = len(self.materials)
+        if state.materials.size and (state.materials.min() < 0 or state.materials.max() >= n_mat):
+            raise ValueError(f"grain material ids must be in 0..{n_mat - 1}")
+        self.walls = walls if isinstance(walls, Walls) else Walls(walls, periodic)
+        if np.any(self.walls.material >= n_mat):
+            raise ValueError(f"wall material ids must be in 0..{n_mat - 1}")
+        gravity = np.asarray(gravity, dtype=np.float64)
+        if gravity.shape != (3,) or (state.dim == 2 and gravity[2] != 0):
+            raise ValueError("gravity must be a 3-vector, with zero z component in 2D")
+        self.params = self.model.pair_table(self.materials)
+        self.model_ids = self.model.ids()
+        self.dt_report = time_step_report(state, self.materials, self.model, dt)
+        if dt is None:
+            dt = self.dt_report["suggested_dt_s"]
+            self.dt_report.update(dt_s=dt, fraction=dt / self.dt_report["critical_time_s"])
+        if not dt > 0:
+            raise ValueError(f"time step must be > 0 [s], got {dt}")
+        if self.dt_report["fraction"] > self.dt_report["max_fraction"] and not allow_large_dt:
+            r = self.dt_report
+            raise ValueError(
+                f"time step {dt:.3g} s is {r['fraction']:.2f} of the {r['criterion']} "
+                f"{r['critical_time_s']:.3g} s, above the safe fraction {r['max_fraction']}; "
+                f"use dt <= {r['max_fraction'] * r['critical_time_s']:.3g} s (suggested "
+                f"{r['suggested_dt_s']:.3g} s) or pass allow_large_dt=True")
+        if skin is None:
+            skin = 0.2 * float(state.radii.mean())
+        if not skin > 0:
+            raise ValueError(f"skin must be > 0 [m], got {skin}")
+        for d in range(3):
+            if self.walls.periodic_flag[d] and \
+                    self.walls.periodic_length[d] < 2 * (2 * state.radii.max() + skin):
+                raise ValueError(f"periodic length along axis {d} must be at least twice the "
+                                 "largest diameter plus skin")
+        if check_interval < 1 or not overlap_limit > 0:
+            raise ValueError("check_interval must be >= 1 and overlap_limit > 0")
+        self.clock = loop.new_clock(dt, skin, gravity)
+        self.clock[loop.TIME] = state.time
+        self.clock[loop.OVERLAP_LIMIT] = overlap_limit
+        self.counters = np.zeros(10, np.int64)
+        self.counters[loop.STEP] = state.step
+        self.counters[loop.DIM] = state.dim
+        self.counters[loop.INTEGRATOR] = integrator_id(integrator)
+        self.counters[loop.FORCE_REBUILD] = 1
+        self.counters[loop.CHECK_INTERVAL] = check_interval
+        self.integrator = integrator
+        n = state.n
+        self.reference_positions = state.positions.copy()
+        self.max_overlap = np.zeros(n)
+        self.block_scratch = np.zeros(64)
+        self.history_size = max(1, self.model.history_size)
+        self._allocate_pairs(8 * n + 64)
+        self._allocate_walls(n + 16)
+
+    # ------------------------------------------------------------------ storage
+    def _allocate_pairs(self, capacity, keep=0):
+        """(Re)allocate pair arrays with room for ``capacity`` pairs, keeping the list."""
+        n, h = self.state.n, self.history_size
+        old = getattr(self, "pairs", None)
+        start = old[0] if old is not None else np.zeros(n + 1, np.int64)
+        partners = np.zeros(capacity, np.int32)
+        history = np.zeros((capacity, h))
+        if old is not None:
+            m = int(old[0][n])
+            partners[:m] = old[1][:m]
+            history[:m] = old[2][:m]
+        self.pairs = (start, partners, history, np.zeros(n + 1, np.int64),
+                      np.zeros(capacity, np.int32), np.zeros((capacity, h)),
+                      np.zeros(n + 1, np.int64), np.zeros(capacity, np.int64),
+                      np.zeros((capacity, 3)), np.zeros((capacity, 3)), np.zeros((capacity, 3)))
+
+    def _allocate_walls(self, capacity):
+        n, h, w = self.state.n, self.history_size, self.walls
+        old = getattr(self, "wall_contacts", None)
+        start = old[0] if old is not None else np.zeros(n + 1, np.int64)
+        ids = np.zeros(capacity, np.int32)
+        history = np.zeros((capacity, h))
+        if old is not None:
+            m = int(old[0][n])
+            ids[:m] = old[1][:m]
+            history[:m] = old[2][:m]
+        self.wall_contacts = (start, ids, history, np.zeros(n + 1, np.int64),
+                              np.zeros(capacity, np.int32), np.zeros((capacity, h)),
+                              np.zeros((capacity, 3)), np.zeros((capacity, 3)))
+        self.reference_offset = w.offset.copy()
+
+    def _grains(self):
+        s = self.state
+        return (s.positions, s.velocities, s.angular_velocities, s.orientations, s.forces,
+                s.torques, s.accelerations, s.angular_accelerations, s.radii, s.masses,
+                s.inertias, s.materials, s.fixed, self.reference_positions, self.max_overlap)
+
+    def _walls(self):
+        w, c = self.walls, self.wall_contacts
+        return (w.kind, w.geometry, w.motion_kind, w.motion, w.base, w.offset, w.velocity,
+                w.material, w.force, self.reference_offset, c[0], c[1], c[2], c[3], c[4],
+                c[5], c[6], c[7])
+
+    def _periodic(self):
+        w = self.walls
+        return (w.periodic_flag, w.periodic_lo, w.periodic_length)
+
+    # ------------------------------------------------------------------ running
+    @property
+    def dt(self):
+        """Time step [s]."""
+        return float(self.clock[loop.DT])
+
+    @property
+    def time(self):
+        """Simulated time [s]."""
+        return float(self.clock[loop.TIME])
+
+    @property
+    def step(self):
+        """Steps done."""
+        return int(self.counters[loop.STEP])
+
+    @property
+    def rebuilds(self):
+        """Neighbour-list builds so far."""
+        return int(self.counters[loop.REBUILDS])
+
+    @property
+    def dissipated(self):
+        """Energy dissipated so far [J]: {"normal": ..., "tangential": ...}."""
+        return {"normal": float(self.clock[loop.DISS_N]),
+                "tangential": float(self.clock[loop.DISS_T])}
+
+    @property
+    def wall_work(self):
+        """Work done on the grains by moving walls so far [J]."""
+        return float(self.clock[loop.WALL_WORK])
+
+    def _chunk(self, nsteps):
+        """Run up to nsteps compiled steps, growing storage as needed."""
+        while True:
+            status, done = loop.run_chunk(self.model_ids, self.params, self._grains(), self.pairs,
+                                          self._walls(), self._periodic(), self.clock,
+                                          self.counters, self.block_scratch, nsteps)
+            self.state.time = self.time
+            self.state.step = self.step
+            if status != loop.GROW:
+                return status, done
+            need_p = int(self.counters[loop.NEED_PAIRS])
+            need_w = int(self.counters[loop.NEED_WALLS])
+            if need_p > self.pairs[1].size:
+                self._allocate_pairs(int(1.3 * need_p) + 64)
+            if need_w > self.wall_contacts[1].size:
+                self._allocate_walls(int(1.3 * need_w) + 16)
+            nsteps -= done
+            if nsteps == 0:
+                return loop.DONE, done
+
+    def run(self, steps=None, time=None, until=None, every=(), max_chunk=20000):
+        """Advance ``steps`` steps or ``time`` seconds, or until the compiled condition
+        ``until`` (MaxSpeedBelow, EnergyRatioBelow) holds, whichever comes first.
+
+        every : list of (Periodic, callback(sim)) run between chunks when due.
+        Returns "done" or "condition"; raises SimulationError on NaN or blow-up.
+        """
+        if steps is None and time is None:
+            raise ValueError("run needs steps= or time= (an upper bound, also with until=)")
+        if steps is None:
+            steps = int(math.ceil(time / self.dt - 1e-9))
+        if steps < 0:
+            raise ValueError(f"steps must be >= 0, got {steps}")
+        self.counters[loop.COND_KIND] = until.kind if until is not None else loop.NO_CONDITION
+        self.clock[loop.COND_VALUE] = until.value if until is not None else 0.0
+        periods = [(trigger.period(self.dt), cb) for trigger, cb in every]
+        for trigger, _ in every:
+            if not isinstance(trigger, Periodic):
+                raise TypeError("every= takes (Periodic, callback) pairs")
+        end = self.step + steps
+        try:
+            while self.step < end:
+                n = min(end - self.step, max_chunk)
+                for period, _ in periods:
+                    n = min(n, period - self.step % period)
+                status, _ = self._chunk(n)
+                for period, cb in periods:
+                    if self.step % period == 0:
+                        cb(self)
+                if status == loop.CONDITION:
+                    return "condition"
+                if status == loop.NAN:
+                    raise SimulationError(
+                        f"non-finite position, velocity or force at step {self.step} "
+                        f"(t = {self.time:.6g} s): the time step is probably too large for "
+                        f"the stiffness ({self.dt_report})")
+                if status == loop.OVERLAP:
+                    raise SimulationError(
+                        f"an overlap exceeded {self.clock[loop.OVERLAP_LIMIT]:.3g} of the "
+                        f"smaller radius at step {self.step} (t = {self.time:.6g} s): grains "
+                        "are too soft for the load or the time step is too large")
+        finally:
+            self.counters[loop.COND_KIND] = loop.NO_CONDITION
+        return "done"
+
+    # ------------------------------------------------------------------ contacts
+    def contacts(self):
+        """Touching grain pairs of the last force evaluation: (i, j, force on i (K, 3) [N])."""
+        start, partners, force = self.pairs[0], self.pairs[1], self.pairs[8]
+        n = self.state.n
+        m = int(start[n])
+        owner = np.repeat(np.arange(n), np.diff(start))
+        touching = np.any(force[:m] != 0.0, axis=1)
+        return owner[touching], partners[:m][touching].astype(np.int64), force[:m][touching]
+
+    def wall_contacts_active(self):
+        """Touching grain-wall contacts: (grain, wall, force on grain (K, 3) [N])."""
+        start, ids, force = self.wall_contacts[0], self.wall_contacts[1], self.wall_contacts[6]
+        n = self.state.n
+        m = int(start[n])
+        owner = np.repeat(np.arange(n), np.diff(start))
+        touching = np.any(force[:m] != 0.0, axis=1)
+        return owner[touching], ids[:m][touching].astype(np.int64), force[:m][touching]

@@ -1,0 +1,147 @@
+"""State: the grains as a struct of float64 arrays, in 2D (disks) or 3D (spheres).
+
+Both dimensions use 3-component vectors so one compiled kernel serves both: in 2D the
+z components of positions and velocities and the x, y components of angular
+velocities stay zero, the orientation is a rotation about z (``angles`` gives it) and
+``density`` is an areal density [kg/m^2].
+"""
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+def sample_radii(n, distribution, rng, *, d_min=None, d_max=None, mean=None, std=None):
+    """Radii [m] of n grains from a diameter distribution.
+
+    distribution: "uniform" (diameters uniform in [d_min, d_max], as in Oquendo and
+    Perez), "normal" (mean, std of the diameter, truncated to [d_min, d_max] when
+    given) or "lognormal" (mean and std of the diameter itself, not of its log).
+    """
+    if n < 1:
+        raise ValueError(f"number of grains must be >= 1, got {n}")
+    if distribution == "uniform":
+        if d_min is None or d_max is None or not 0 < d_min <= d_max:
+            raise ValueError(f"uniform diameters need 0 < d_min <= d_max, got {d_min}, {d_max}")
+        d = rng.uniform(d_min, d_max, n) if d_max > d_min else np.full(n, float(d_min))
+    elif distribution in ("normal", "lognormal"):
+        if mean is None or std is None or mean <= 0 or std < 0:
+            raise ValueError(f"{distribution} diameters need mean > 0 and std >= 0")
+        lo = d_min if d_min is not None else 1e-6 * mean
+        hi = d_max if d_max is not None else np.inf
+        if distribution == "normal":
+            draw = lambda k: rng.normal(mean, std, k)
+        else:
+            s2 = np.log1p((std / mean) ** 2)
+            draw = lambda k: rng.lognormal(np.log(mean) - 0.5 * s2, np.sqrt(s2), k)
+        d = np.empty(0)
+        for _ in range(1000):
+            x = draw(n)
+            d = np.concatenate([d, x[(x >= lo) & (x <= hi)]])
+            if d.size >= n:
+                break
+        else:
+            raise ValueError("diameter bounds reject almost every draw of the distribution")
+        d = d[:n]
+    else:
+        raise ValueError(f"unknown diameter distribution {distribution!r}; "
+                         "choose uniform, normal or lognormal")
+    return 0.5 * d
+
+
+@dataclass
+class State:
+    """N grains: kinematics, shape and material, as contiguous arrays (SI units).
+
+    positions, velocities : (N, 3) [m], [m/s]
+    angular_velocities : (N, 3) [rad/s];  orientations : (N, 4) unit quaternions (w, x, y, z)
+    forces, torques : (N, 3) [N], [N m] of the last force evaluation
+    accelerations, angular_accelerations : (N, 3) integrator history [m/s^2], [rad/s^2]
+    radii, masses, inertias : (N,) [m], [kg], [kg m^2];  materials : (N,) int32
+    fixed : (N,) int8, 1 for grains the integrator leaves in place
+    """
+
+    dim: int
+    positions: np.ndarray
+    velocities: np.ndarray
+    angular_velocities: np.ndarray
+    orientations: np.ndarray
+    forces: np.ndarray
+    torques: np.ndarray
+    accelerations: np.ndarray
+    angular_accelerations: np.ndarray
+    radii: np.ndarray
+    masses: np.ndarray
+    inertias: np.ndarray
+    materials: np.ndarray
+    fixed: np.ndarray
+    time: float = 0.0
+    step: int = 0
+    extra: dict = field(default_factory=dict)
+
+    @classmethod
+    def create(cls, positions, radii, densities, dim=3, materials=None, velocities=None):
+        """Grains at ``positions`` [m] with ``radii`` [m]; ``densities`` per grain or scalar.
+
+        3D: m = 4/3 pi rho R^3, I = 2/5 m R^2 (solid spheres).
+        2D: rho is areal [kg/m^2], m = pi rho R^2, I = m R^2/2 (solid disks).
+        """
+        if dim not in (2, 3):
+            raise ValueError(f"dim must be 2 or 3, got {dim}")
+        radii = np.ascontiguousarray(radii, dtype=np.float64)
+        n = radii.size
+        pos = np.zeros((n, 3))
+        p = np.asarray(positions, dtype=np.float64).reshape(n, -1)
+        if p.shape[1] not in (2, 3) or (dim == 3 and p.shape[1] != 3):
+            raise ValueError(f"positions must be (N, {dim}), got {p.shape}")
+        pos[:, : p.shape[1]] = p
+        if dim == 2:
+            pos[:, 2] = 0.0
+        if np.any(radii <= 0) or not np.all(np.isfinite(pos)):
+            raise ValueError("radii must be positive and positions finite")
+        rho = np.broadcast_to(np.asarray(densities, dtype=np.float64), (n,))
+        if np.any(rho <= 0):
+            raise ValueError("densities must be positive")
+        if dim == 3:
+            masses = 4.0 / 3.0 * np.pi * rho * radii**3
+            inertias = 0.4 * masses * radii**2
+        else:
+            masses = np.pi * rho * radii**2
+            inertias = 0.5 * masses * radii**2
+        zeros = lambda: np.zeros((n, 3))
+        quat = np.zeros((n, 4))
+        quat[:, 0] = 1.0
+        state = cls(dim, pos, zeros(), zeros(), quat, zeros(), zeros(), zeros(), zeros(),
+                    radii, masses, inertias,
+                    np.zeros(n, np.int32) if materials is None
+                    else np.ascontiguousarray(materials, dtype=np.int32),
+                    np.zeros(n, np.int8))
+        if velocities is not None:
+            v = np.asarray(velocities, dtype=np.float64).reshape(n, -1)
+            state.velocities[:, : v.shape[1]] = v
+            if dim == 2:
+                state.velocities[:, 2] = 0.0
+        return state
+
+    @property
+    def n(self) -> int:
+        """Number of grains."""
+        return self.radii.size
+
+    @property
+    def angles(self) -> np.ndarray:
+        """2D orientation angle about z [rad], from the quaternion."""
+        q = self.orientations
+        return 2.0 * np.arctan2(q[:, 3], q[:, 0])
+
+    @property
+    def volumes(self) -> np.ndarray:
+        """Grain volumes [m^3] (3D) or areas [m^2] (2D)."""
+        r = self.radii
+        return 4.0 / 3.0 * np.pi * r**3 if self.dim == 3 else np.pi * r**2
+
+    def arrays(self) -> dict:
+        """All per-grain arrays by name (for checkpoints and device transfer)."""
+        names = ("positions", "velocities", "angular_velocities", "orientations", "forces",
+                 "torques", "accelerations", "angular_accelerations", "radii", "masses",
+                 "inertias", "materials", "fixed")
+        return {k: getattr(self, k) for k in names}

@@ -1,0 +1,229 @@
+"""Walls and boundaries: planes, axis-aligned boxes, the inside of a cylinder, periodic
+directions; prescribed wall motion.  Walls are geometry only: their contact forces come
+from the same physics.contact.contact_force as grain pairs, with R_j = infinity.
+
+Kernel layout (``Walls.arrays``): kind (W,) 0 plane / 1 cylinder inside;
+geometry (W, 7) = origin (3), unit normal or axis (3), radius; motion_kind (W,)
+0 fixed / 1 constant velocity / 2 sinusoid; motion (W, 8) = unit direction (3),
+speed [m/s], amplitude [m], frequency [Hz], phase [rad], start time [s];
+offset (W, 3) [m] and velocity (W, 3) [m/s] of each wall (state).
+"""
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._jit import scalar, kernel
+
+PLANE, CYLINDER = 0, 1
+FIXED, VELOCITY, SINUSOID = 0, 1, 2
+
+
+def _unit(v, what):
+    v = np.asarray(v, dtype=np.float64)
+    if v.shape != (3,) or not np.all(np.isfinite(v)) or np.linalg.norm(v) == 0:
+        raise ValueError(f"{what} must be a finite non-zero 3-vector, got {v}")
+    return v / np.linalg.norm(v)
+
+
+@dataclass(frozen=True)
+class Motion:
+    """Prescribed wall motion.
+
+    kind "fixed"; "velocity": x(t) = x0 + velocity (t - start) [m/s];
+    "sinusoid": x(t) = x0 + direction amplitude (sin(2 pi f (t-start) + phase) - sin(phase)).
+    """
+
+    kind: str = "fixed"
+    velocity: tuple = (0.0, 0.0, 0.0)
+    direction: tuple = (0.0, 0.0, 1.0)
+    amplitude: float = 0.0
+    frequency: float = 0.0
+    phase: float = 0.0
+    start: float = 0.0
+
+    def row(self):
+        """(kind id, (8,) parameters) for the kernel."""
+        if self.kind == "fixed":
+            return FIXED, np.zeros(8)
+        if self.kind == "velocity":
+            v = np.asarray(self.velocity, dtype=np.float64)
+            speed = float(np.linalg.norm(v))
+            u = v / speed if speed > 0 else np.zeros(3)
+            return VELOCITY, np.array([*u, speed, 0.0, 0.0, 0.0, self.start])
+        if self.kind == "sinusoid":
+            if self.amplitude < 0 or self.frequency <= 0:
+                raise ValueError("sinusoid motion needs amplitude >= 0 and frequency > 0 [Hz]")
+            u = _unit(self.direction, "motion direction")
+            return SINUSOID, np.array([*u, 0.0, self.amplitude, self.frequency, self.phase,
+                                       self.start])
+        raise ValueError(f"unknown wall motion {self.kind!r}; choose fixed, velocity, sinusoid")
+
+
+@dataclass
+class Plane:
+    """Infinite plane through ``point`` [m]; grains live on the side ``normal`` points to.
+
+    area [m^2] is used to turn the wall force into a stress (None: unknown).
+    """
+
+    point: tuple
+    normal: tuple
+    material: int = 0
+    motion: Motion = field(default_factory=Motion)
+    name: str = "plane"
+    area: float | None = None
+
+    def row(self):
+        return PLANE, np.array([*np.asarray(self.point, float), *_unit(self.normal, "normal"),
+                                0.0])
+
+
+@dataclass
+class Cylinder:
+    """Inside of a cylinder of ``radius`` [m] around the axis through ``point`` along ``axis``."""
+
+    point: tuple
+    axis: tuple
+    radius: float
+    material: int = 0
+    motion: Motion = field(default_factory=Motion)
+    name: str = "cylinder"
+    area: float | None = None
+
+    def row(self):
+        if not self.radius > 0:
+            raise ValueError(f"cylinder radius must be > 0 [m], got {self.radius}")
+        return CYLINDER, np.array([*np.asarray(self.point, float), *_unit(self.axis, "axis"),
+                                   float(self.radius)])
+
+
+def box(lo, hi, material=0, open_top=True, dim=3):
+    """The planes of an axis-aligned box [lo, hi] [m], inward normals, named by face.
+
+    open_top leaves out the face at hi along the last axis (z in 3D, y in 2D).
+    In 2D only the x and y faces exist; areas are then lengths [m] (per unit depth).
+    """
+    lo = np.asarray(lo, dtype=np.float64)
+    hi = np.asarray(hi, dtype=np.float64)
+    if lo.shape != (dim,) or hi.shape != (dim,) or np.any(hi <= lo):
+        raise ValueError(f"box needs lo < hi with {dim} components, got {lo}, {hi}")
+    size = hi - lo
+    planes = []
+    for a in range(dim):
+        other = np.prod(np.delete(size, a)) if dim == 3 else float(np.delete(size, a)[0])
+        for side, point in (("lo", lo), ("hi", hi)):
+            if open_top and a == dim - 1 and side == "hi":
+                continue
+            n = np.zeros(3)
+            n[a] = 1.0 if side == "lo" else -1.0
+            p = np.zeros(3)
+            p[:dim] = lo
+            p[a] = point[a]
+            planes.append(Plane(tuple(p), tuple(n), material, name=f"{'xyz'[a]}{side}",
+                                area=float(other)))
+    return planes
+
+
+@dataclass(frozen=True)
+class Periodic:
+    """Periodic direction ``axis`` (0, 1, 2) over [lo, hi) [m]."""
+
+    axis: int
+    lo: float
+    hi: float
+
+
+class Walls:
+    """The walls of a simulation, as kernel arrays, plus periodic directions."""
+
+    def __init__(self, walls=(), periodic=()):
+        self.walls = list(walls)
+        w = len(self.walls)
+        self.kind = np.zeros(w, np.int64)
+        self.geometry = np.zeros((max(w, 1), 7))[:w]
+        self.motion_kind = np.zeros(w, np.int64)
+        self.motion = np.zeros((w, 8))
+        self.material = np.zeros(w, np.int32)
+        for k, wall in enumerate(self.walls):
+            self.kind[k], self.geometry[k] = wall.row()
+            self.motion_kind[k], self.motion[k] = wall.motion.row()
+            self.material[k] = wall.material
+        self.offset = np.zeros((w, 3))
+        self.base = np.zeros((w, 3))
+        self.velocity = np.zeros((w, 3))
+        self.force = np.zeros((w, 3))
+        self.periodic_flag = np.zeros(3, np.int64)
+        self.periodic_lo = np.zeros(3)
+        self.periodic_length = np.zeros(3)
+        for p in periodic:
+            if p.axis not in (0, 1, 2) or not p.hi > p.lo:
+                raise ValueError(f"periodic direction needs axis in 0..2 and hi > lo, got {p}")
+            self.periodic_flag[p.axis] = 1
+            self.periodic_lo[p.axis] = p.lo
+            self.periodic_length[p.axis] = p.hi - p.lo
+
+    def __len__(self):
+        return len(self.walls)
+
+    def index(self, name):
+        """Index of the wall called ``name``."""
+        for k, w in enumerate(self.walls):
+            if w.name == name:
+                return k
+        raise KeyError(f"no wall named {name!r}; walls are {[w.name for w in self.walls]}")
+
+    def normal_force(self, k):
+        """Force [N] the grains push on wall k along its inward normal (plane) or outward."""
+        return float(-self.force[k] @ self.geometry[k, 3:6]) if self.kind[k] == PLANE \
+            else float(np.linalg.norm(self.force[k]))
+
+    def stress(self, k):
+        """Normal stress [Pa] on wall k: normal force over its area (None if no area)."""
+        a = self.walls[k].area
+        return None if a is None else self.normal_force(k) / a
+
+
+@scalar
+def wall_distance(kind, geometry, offset, x, y, z):
+    """Distance [m] from the wall surface to a point, and the unit normal pointing from
+    the wall to the point (plane: signed distance on the normal side; cylinder: radius
+    minus the distance to the axis)."""
+    px = x - geometry[0] - offset[0]
+    py = y - geometry[1] - offset[1]
+    pz = z - geometry[2] - offset[2]
+    ax = geometry[3]
+    ay = geometry[4]
+    az = geometry[5]
+    along = px * ax + py * ay + pz * az
+    if kind == PLANE:
+        return along, ax, ay, az
+    rx = px - along * ax
+    ry = py - along * ay
+    rz = pz - along * az
+    rho = math.sqrt(rx * rx + ry * ry + rz * rz)
+    if rho == 0.0:
+        return geometry[6], 1.0, 0.0, 0.0
+    return geometry[6] - rho, -rx / rho, -ry / rho, -rz / rho
+
+
+@kernel
+def walls_advance(motion_kind, motion, base, offset, velocity, time, dt):
+    """Move prescribed walls from ``time`` to ``time + dt`` [s]."""
+    t = time + dt
+    for w in range(motion_kind.size):
+        kind = motion_kind[w]
+        if kind == VELOCITY and t > motion[w, 7]:
+            for d in range(3):
+                velocity[w, d] = motion[w, d] * motion[w, 3]
+                offset[w, d] += velocity[w, d] * dt
+        elif kind == SINUSOID and t > motion[w, 7]:
+            omega = 2.0 * math.pi * motion[w, 5]
+            arg = omega * (t - motion[w, 7]) + motion[w, 6]
+            for d in range(3):
+                offset[w, d] = base[w, d] + motion[w, d] * motion[w, 4] * (
+                    math.sin(arg) - math.sin(motion[w, 6]))
+                velocity[w, d] = motion[w, d] * motion[w, 4] * omega * math.cos(arg)
+        else:
+            for d in range(3):
+                velocity[w, d] = 0.0

@@ -1,0 +1,98 @@
+"""One contact, all modes: the integer-id dispatcher over the registered sub-models.
+
+Order (as LAMMPS GRANULAR): elastic normal force, damping, clamp to repulsive,
+tangential law capped by the normal force.  Rolling and twisting resistance have the
+id 0 ("none") only, for now.  Law ids and table columns come from physics/registry.py.
+"""
+from .._jit import scalar
+from .damping import (damping_linear_coefficient, damping_tsuji_coefficient,
+                      damping_viscoelastic_coefficient)
+from .normal import (normal_hertz_energy, normal_hertz_force, normal_hooke_energy,
+                     normal_hooke_force)
+from .registry import COL, DAMPING, NORMAL, TANGENTIAL
+from .tangential import (tangential_coulomb_force, tangential_mindlin_stiffness,
+                         tangential_spring_energy, tangential_spring_force)
+
+_HOOKE = NORMAL["hooke"]
+_LINEAR = DAMPING["linear"]
+_VISCOELASTIC = DAMPING["viscoelastic"]
+_TSUJI = DAMPING["tsuji"]
+_COULOMB = TANGENTIAL["coulomb"]
+_CUNDALL = TANGENTIAL["cundall_strack"]
+_MINDLIN = TANGENTIAL["mindlin"]
+_KN = COL["kn"]
+_E = COL["youngs_eff"]
+_G = COL["shear_eff"]
+_BETA = COL["damping_ratio"]
+_GAMMA0 = COL["damping_constant"]
+_GAMMA_N = COL["gamma_n"]
+_ALPHA = COL["tsuji_alpha"]
+_KT = COL["kt"]
+_XT = COL["tangential_damping"]
+_MU = COL["friction_sliding"]
+
+
+@scalar
+def contact_force(model, p, overlap, r_eff, m_eff, nx, ny, nz, vn, vtx, vty, vtz, history, dt):
+    """Force on grain i of one contact with overlap > 0.
+
+    model : (6,) int ids (normal, damping, tangential, rolling, twisting) and the
+        limit_damping flag: 1 keeps the normal force repulsive (Perez Eq. 14, 17),
+        0 lets the dashpot pull at the end of a contact (the LAMMPS default)
+    p : (NCOL,) pair parameters;  overlap [m];  r_eff [m];  m_eff [kg]
+    n : unit normal from j to i;  vn = v_rel.n [m/s] (negative when approaching)
+    v_t : tangential relative velocity of i at the contact point [m/s]
+    history : per-contact history values, updated in place;  dt [s]
+    Returns (f_n >= 0 [N], f_t (3) [N], normal and tangential energy dissipated [J]).
+    """
+    if model[0] == _HOOKE:
+        f_el = normal_hooke_force(overlap, p[_KN])
+    else:
+        f_el = normal_hertz_force(overlap, r_eff, p[_E])
+    damping = model[1]
+    if damping == _LINEAR:
+        c = damping_linear_coefficient(m_eff, p[_KN], p[_BETA], p[_GAMMA0])
+    elif damping == _VISCOELASTIC:
+        c = damping_viscoelastic_coefficient(m_eff, overlap, p[_GAMMA_N])
+    elif damping == _TSUJI:
+        c = damping_tsuji_coefficient(m_eff, overlap, f_el, p[_ALPHA])
+    else:
+        c = 0.0
+    rate = -vn
+    fn = f_el + c * rate
+    if fn < 0.0 and model[5] != 0:
+        fn = 0.0
+    dissipated_n = (fn - f_el) * rate * dt
+    tangential = model[2]
+    if tangential == _COULOMB:
+        ftx, fty, ftz, dissipated_t = tangential_coulomb_force(p[_MU], fn, vtx, vty, vtz, dt)
+    elif tangential == _CUNDALL:
+        ftx, fty, ftz, dissipated_t = tangential_spring_force(
+            p[_KT], p[_XT] * c, p[_MU], fn, nx, ny, nz, vtx, vty, vtz, history, dt)
+    elif tangential == _MINDLIN:
+        kt = tangential_mindlin_stiffness(p[_G], r_eff, overlap)
+        ftx, fty, ftz, dissipated_t = tangential_spring_force(
+            kt, p[_XT] * c, p[_MU], fn, nx, ny, nz, vtx, vty, vtz, history, dt)
+    else:
+        ftx = 0.0
+        fty = 0.0
+        ftz = 0.0
+        dissipated_t = 0.0
+    return fn, ftx, fty, ftz, dissipated_n, dissipated_t
+
+
+@scalar
+def contact_energy(model, p, overlap, r_eff, history):
+    """Elastic energy [J] stored in one contact: normal spring plus tangential spring."""
+    if overlap <= 0.0:
+        return 0.0
+    if model[0] == _HOOKE:
+        energy = normal_hooke_energy(overlap, p[_KN])
+    else:
+        energy = normal_hertz_energy(overlap, r_eff, p[_E])
+    if model[2] == _CUNDALL:
+        energy += tangential_spring_energy(p[_KT], history)
+    elif model[2] == _MINDLIN:
+        energy += tangential_spring_energy(
+            tangential_mindlin_stiffness(p[_G], r_eff, overlap), history)
+    return energy
