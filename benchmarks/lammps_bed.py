@@ -1,0 +1,57 @@
+"""graindyn side of the LAMMPS benchmark (../shared/bench/run_all.py --custom ...).
+
+    python benchmarks/lammps_bed.py STATE CYL SIZE E e DT SKIN WARM STEPS THREADS
+
+Loads the settled bed STATE (x y z r per line, SI), builds the same container (CYL 0:
+box [0, SIZE]^2 with a floor at z = 0 and an open top; CYL 1: cylinder of radius SIZE
+about the z axis with a floor at z = 0), the same physics as lmp_bench.in (Hertz with
+E and nu = 0.3, Mindlin tangential spring, tangential damping ratio 1, mu = 0.5, Tsuji
+damping from restitution e, no damping limit, rho = 2650, g = 9.81), runs WARM untimed
+and STEPS timed steps on THREADS threads, and prints `wall <s>`, `zpp <contacts per
+grain>`, particle-steps/s and peak memory.
+"""
+import resource
+import sys
+import time
+
+import numpy as np
+
+
+def main(argv):
+    if len(argv) != 10:
+        sys.exit(__doc__)
+    state_file, cyl, size, young, rest, dt, skin, warm, steps, threads = argv
+    import numba
+
+    numba.set_num_threads(int(threads))
+    import graindyn as gd
+    from graindyn.analysis.packing import coordination_number
+
+    data = np.loadtxt(state_file, ndmin=2)
+    size = float(size)
+    state = gd.State.create(data[:, :3], data[:, 3], 2650.0)
+    grain = gd.Material("bed", density=2650.0, youngs_modulus=float(young), poisson_ratio=0.3,
+                        restitution=float(rest), friction_sliding=0.5, tangential_damping=1.0)
+    model = gd.ContactModel("hertz", "tsuji", "mindlin", limit_damping=False)
+    floor = gd.Plane((0, 0, 0), (0, 0, 1), name="floor")
+    if int(cyl):
+        walls = [gd.Cylinder((0, 0, 0), (0, 0, 1), size), floor]
+    else:
+        walls = [gd.Plane((0, 0, 0), (1, 0, 0)), gd.Plane((size, 0, 0), (-1, 0, 0)),
+                 gd.Plane((0, 0, 0), (0, 1, 0)), gd.Plane((0, size, 0), (0, -1, 0)), floor]
+    sim = gd.Simulation(state, [grain], model, walls=walls, dt=float(dt), skin=float(skin),
+                        check_interval=1000)
+    sim.run(steps=int(warm))
+    t0 = time.perf_counter()
+    sim.run(steps=int(steps))
+    wall = time.perf_counter() - t0
+    n = state.n
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    print(f"wall {wall:.6f}")
+    print(f"zpp {coordination_number(sim):.4f}")
+    print(f"particle_steps_per_s {n * int(steps) / wall:.4g} threads {threads} N {n} "
+          f"peak_rss_bytes {rss} rebuilds {sim.rebuilds}")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

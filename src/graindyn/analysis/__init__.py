@@ -1,0 +1,1 @@
+"""Observables: energies, packing, coordination, stresses."""

@@ -1,0 +1,207 @@
+"""Sample preparation: random insertion of polydisperse grains into a container, or a
+loose lattice with random velocities (Perez Sec. 4.1), then settling under gravity until
+an equilibrium criterion holds (Karrech et al. Sec. 3: E_c/E_p <= epsilon).
+"""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._jit import kernel
+from ..analysis.energy import energy_budget
+from ..analysis.packing import coordination_number, packing_fraction, void_ratio
+from ..core.triggers import EnergyRatioBelow, MaxSpeedBelow
+
+
+@dataclass(frozen=True)
+class BoxRegion:
+    """Axis-aligned region [lo, hi] [m] (2 or 3 components)."""
+
+    lo: tuple
+    hi: tuple
+
+    def bounds(self, dim):
+        lo = np.zeros(3)
+        hi = np.zeros(3)
+        lo[:dim] = self.lo
+        hi[:dim] = self.hi
+        if len(self.lo) != dim or len(self.hi) != dim or np.any(hi[:dim] <= lo[:dim]):
+            raise ValueError(f"box region needs lo < hi with {dim} components")
+        return lo, hi, 0.0
+
+    def volume(self, dim):
+        return float(np.prod(np.subtract(self.hi, self.lo)))
+
+
+@dataclass(frozen=True)
+class CylinderRegion:
+    """Vertical (z) cylinder of ``radius`` [m] about (cx, cy), between z0 and z1 [m]."""
+
+    center: tuple
+    radius: float
+    z0: float
+    z1: float
+
+    def bounds(self, dim):
+        if dim != 3 or not self.radius > 0 or not self.z1 > self.z0:
+            raise ValueError("cylinder region is 3D and needs radius > 0 and z1 > z0")
+        cx, cy = self.center
+        lo = np.array([cx - self.radius, cy - self.radius, self.z0])
+        hi = np.array([cx + self.radius, cy + self.radius, self.z1])
+        return lo, hi, float(self.radius)
+
+    def volume(self, dim):
+        return math.pi * self.radius**2 * (self.z1 - self.z0)
+
+
+@kernel
+def _random_sequential(radii, lo, hi, cyl_radius, dim, seed, attempts):
+    """Place grains (largest first) at uniform random non-overlapping positions; returns
+    positions and the number placed (< N when the region is too full)."""
+    np.random.seed(seed)
+    n = radii.size
+    rmax = radii.max()
+    cell = 2.0 * rmax
+    counts = np.ones(3, np.int64)
+    for d in range(dim):
+        counts[d] = max(1, int((hi[d] - lo[d]) / cell))
+    head = -np.ones(counts[0] * counts[1] * counts[2], np.int64)
+    nxt = -np.ones(n, np.int64)
+    pos = np.zeros((n, 3))
+    center = 0.5 * (lo + hi)
+    for i in range(n):
+        r = radii[i]
+        placed = False
+        for _ in range(attempts):
+            x = np.zeros(3)
+            ok = True
+            for d in range(dim):
+                a = lo[d] + r
+                b = hi[d] - r
+                if b < a:
+                    return pos, i
+                x[d] = a + (b - a) * np.random.random()
+            if cyl_radius > 0.0:
+                dx = x[0] - center[0]
+                dy = x[1] - center[1]
+                if dx * dx + dy * dy > (cyl_radius - r) ** 2:
+                    continue
+            c = np.zeros(3, np.int64)
+            for d in range(dim):
+                c[d] = min(counts[d] - 1, int((x[d] - lo[d]) / cell))
+            for ax in range(max(0, c[0] - 1), min(counts[0], c[0] + 2)):
+                for ay in range(max(0, c[1] - 1), min(counts[1], c[1] + 2)):
+                    for az in range(max(0, c[2] - 1), min(counts[2], c[2] + 2)):
+                        j = head[(ax * counts[1] + ay) * counts[2] + az]
+                        while j >= 0 and ok:
+                            d2 = 0.0
+                            for d in range(3):
+                                d2 += (x[d] - pos[j, d]) ** 2
+                            if d2 < (r + radii[j]) ** 2:
+                                ok = False
+                            j = nxt[j]
+            if ok:
+                pos[i] = x
+                k = (c[0] * counts[1] + c[1]) * counts[2] + c[2]
+                nxt[i] = head[k]
+                head[k] = i
+                placed = True
+                break
+        if not placed:
+            return pos, i
+    return pos, n
+
+
+def random_insertion(radii, region, rng, dim=3, attempts=20000):
+    """Random non-overlapping positions (N, 3) [m] for grains of ``radii`` in ``region``.
+
+    Grains are placed largest first, so the returned order follows the sorted radii:
+    returns (positions, radii) both in that order.  Random sequential addition jams near
+    a packing fraction of 0.38 (3D) / 0.55 (2D): a ValueError says so when the region is
+    too small for the grains.
+    """
+    radii = np.sort(np.asarray(radii, dtype=np.float64))[::-1].copy()
+    lo, hi, cyl = region.bounds(dim)
+    pos, placed = _random_sequential(radii, lo, hi, cyl, dim, int(rng.integers(2**31)),
+                                     attempts)
+    if placed < radii.size:
+        fraction = float(np.sum(4 / 3 * np.pi * radii**3 if dim == 3 else np.pi * radii**2)
+                         / region.volume(dim))
+        raise ValueError(f"random insertion placed only {placed} of {radii.size} grains: the "
+                         f"region is too small (solid fraction {fraction:.3f} asked); make it "
+                         "taller or use a loose lattice")
+    return pos, radii
+
+
+def lattice_insertion(radii, region, rng, dim=3, gap=0.05, speed=0.0):
+    """Grains on a simple-cubic (square) lattice of spacing (1 + gap) d_max filling
+    ``region`` from the bottom, with random velocities of magnitude ``speed`` [m/s] in
+    random directions (Perez Sec. 4.1).  Returns (positions (N, 3), velocities (N, 3))."""
+    radii = np.asarray(radii, dtype=np.float64)
+    lo, hi, cyl = region.bounds(dim)
+    a = 2.0 * radii.max() * (1.0 + gap)
+    axes = [np.arange(lo[d] + 0.5 * a, hi[d] - 0.5 * a + 1e-12, a) for d in range(dim - 1)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, dim - 1)
+    if cyl > 0:
+        c = 0.5 * (lo + hi)[: dim - 1]
+        grid = grid[np.linalg.norm(grid - c, axis=1) <= cyl - 0.5 * a]
+    layers = math.ceil(radii.size / max(1, len(grid)))
+    top = lo[dim - 1] + 0.5 * a + (layers - 1) * a
+    if len(grid) == 0 or top > hi[dim - 1] - 0.5 * a + 1e-12:
+        raise ValueError(f"a lattice of spacing {a:.3g} m holds {len(grid)} grains per layer: "
+                         f"{layers} layers do not fit in the region")
+    pos = np.zeros((radii.size, 3))
+    for k in range(radii.size):
+        layer, cell = divmod(k, len(grid))
+        pos[k, : dim - 1] = grid[cell]
+        pos[k, dim - 1] = lo[dim - 1] + 0.5 * a + layer * a
+    v = rng.normal(size=(radii.size, dim))
+    v *= speed / np.linalg.norm(v, axis=1, keepdims=True)
+    vel = np.zeros((radii.size, 3))
+    vel[:, :dim] = v
+    return pos, vel
+
+
+def settle(sim, criterion=None, max_time=5.0, bottom_wall=None, cross_section=None,
+           every=()):
+    """Run under gravity until ``criterion`` (default EnergyRatioBelow(1e-6)) holds or
+    ``max_time`` [s] passes; returns a report of the settled sample.
+
+    Report: reached (bool), time_s, packing_fraction and void_ratio of the bed (from the
+    container ``cross_section`` area [m^2] (2D: width [m]) between the bottom wall and
+    the top of the highest grain; ``_core`` leaves out two diameters at each end, where
+    the walls and the free surface loosen the packing), coordination numbers, the apparent weight on
+    ``bottom_wall`` (name) against the total weight, and the energy budget [J].
+    """
+    criterion = criterion or EnergyRatioBelow(1e-6)
+    if not isinstance(criterion, (EnergyRatioBelow, MaxSpeedBelow)):
+        raise TypeError("criterion must be EnergyRatioBelow or MaxSpeedBelow")
+    status = sim.run(time=max_time, until=criterion, every=every)
+    s = sim.state
+    up = 2 if s.dim == 3 else 1
+    report = {"reached": status == "condition", "criterion": repr(criterion),
+              "time_s": sim.time, "steps": sim.step,
+              "coordination_number": coordination_number(sim),
+              "coordination_number_mechanical": coordination_number(sim, exclude_rattlers=True),
+              "energy_J": energy_budget(sim)}
+    weight = float(np.sum(s.masses[s.fixed == 0]) * np.linalg.norm(sim.clock[3:6]))
+    report["total_weight_N"] = weight
+    if bottom_wall is not None:
+        k = sim.walls.index(bottom_wall)
+        report["apparent_weight_N"] = sim.walls.normal_force(k)
+        report["apparent_weight_ratio"] = report["apparent_weight_N"] / weight
+        base = float(sim.walls.geometry[k, up] + sim.walls.offset[k, up])
+    else:
+        base = float(np.min(s.positions[:, up] - s.radii))
+    top = float(np.max(s.positions[:, up] + s.radii))
+    report["bed_height_m"] = top - base
+    if cross_section is not None:
+        phi = packing_fraction(s, cross_section, base, top)
+        report["packing_fraction"] = phi
+        report["void_ratio"] = void_ratio(phi)
+        d = 2.0 * float(s.radii.mean())
+        if top - base > 6 * d:
+            core = packing_fraction(s, cross_section, base + 2 * d, top - 2 * d)
+            report["packing_fraction_core"] = core
+            report["void_ratio_core"] = void_ratio(core)
+    return report
