@@ -7,8 +7,34 @@ over grains or contacts with ``prange``.  All are cached on disk (``cache=True``
 importing graindyn compiles nothing and a warm start only loads the cache.
 ``error_model="numpy"`` makes division by zero give inf/nan as on the GPU instead of
 raising, and fastmath stays off so that results are reproducible across machines.
+
+Numba checks a cached kernel only against its own source file, not against the
+functions it inlines from other files, so the cache lives in a folder named by a hash
+of the whole package source: any edit starts a fresh cache and nothing stale is ever
+loaded.  ``GRAINDYN_CACHE_DIR`` moves the root (default ~/.cache/graindyn).
 """
+import hashlib
+import os
+import pathlib
+
 import numba
+
+_SOURCE = pathlib.Path(__file__).parent
+
+
+def source_digest():
+    """Hash of every .py file of the package (names and contents)."""
+    h = hashlib.sha1()
+    for path in sorted(_SOURCE.rglob("*.py")):
+        h.update(str(path.relative_to(_SOURCE)).encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()[:16]
+
+
+CACHE_ROOT = pathlib.Path(os.environ.get("GRAINDYN_CACHE_DIR",
+                                         pathlib.Path.home() / ".cache" / "graindyn"))
+CACHE_DIR = CACHE_ROOT / source_digest()
+numba.config.CACHE_DIR = str(CACHE_DIR)
 
 scalar = numba.njit(cache=True, error_model="numpy")
 kernel = numba.njit(cache=True, error_model="numpy")

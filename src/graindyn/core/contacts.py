@@ -9,7 +9,7 @@ velocity of i at that point is v_i - v_j - (R'_i w_i + R'_j w_j) x n.
 import math
 
 from .._jit import parallel, prange, scalar
-from ..physics.contact import contact_force
+from ..physics.contact import contact_force, contact_release
 from .neighbors import min_image
 from .walls import wall_distance
 
@@ -40,14 +40,15 @@ def pair_forces(model, params, positions, velocities, angular_velocities, radii,
                 pair_force, pair_torque_i, pair_torque_j, max_overlap, dt):
     """Forces of every listed pair; zero (and history reset) for pairs not touching.
 
-    max_overlap[i] receives the largest overlap / min(R_i, R_j) of grain i's pairs.
+    max_overlap[i] keeps the largest overlap / min(R_i, R_j) of grain i's pairs since
+    the loop last read and reset it.
     Returns the energies dissipated in the step, normal and tangential [J].
     """
     n = positions.shape[0]
     dissipated_n = 0.0
     dissipated_t = 0.0
     for i in prange(n):
-        worst = 0.0
+        worst = max_overlap[i]
         for k in range(start[i], start[i + 1]):
             j = partners[k]
             dx = min_image(positions[i, 0] - positions[j, 0], 0, periodic_flag, periodic_length)
@@ -58,6 +59,9 @@ def pair_forces(model, params, positions, velocities, angular_velocities, radii,
             rsum = r_i + r_j
             d2 = dx * dx + dy * dy + dz * dz
             if d2 >= rsum * rsum:
+                if history[k, 0] != 0.0 or history[k, 1] != 0.0 or history[k, 2] != 0.0:
+                    dissipated_t += contact_release(model, params[materials[i], materials[j]],
+                                                    history[k])
                 for h in range(history.shape[1]):
                     history[k, h] = 0.0
                 for d in range(3):
@@ -115,6 +119,10 @@ def wall_forces(model, params, positions, velocities, angular_velocities, radii,
             r_i = radii[i]
             overlap = r_i - dist
             if overlap <= 0.0:
+                if wall_history[q, 0] != 0.0 or wall_history[q, 1] != 0.0 \
+                        or wall_history[q, 2] != 0.0:
+                    dissipated_t += contact_release(
+                        model, params[materials[i], wall_material[w]], wall_history[q])
                 for h in range(wall_history.shape[1]):
                     wall_history[q, h] = 0.0
                 for d in range(3):

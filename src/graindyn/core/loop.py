@@ -117,7 +117,9 @@ def _checks(grains, counters, clock):
             v2 += velocities[i, d] ** 2
         if not fixed[i]:
             vmax = max(vmax, v2)
-    if max_overlap.size > 0 and max_overlap.max() > clock[OVERLAP_LIMIT]:
+    worst = max_overlap.max() if max_overlap.size > 0 else 0.0
+    max_overlap[:] = 0.0
+    if worst > clock[OVERLAP_LIMIT]:
         return OVERLAP
     kind = counters[COND_KIND]
     if kind == MAX_SPEED_BELOW and math.sqrt(vmax) < clock[COND_VALUE]:

@@ -87,7 +87,7 @@ class Simulation:
         self.reference_positions = state.positions.copy()
         self.max_overlap = np.zeros(n)
         self.block_scratch = np.zeros(64)
-        self.history_size = max(1, self.model.history_size)
+        self.history_size = max(3, self.model.history_size)
         self._allocate_pairs(8 * n + 64)
         self._allocate_walls(n + 16)
 

@@ -63,16 +63,17 @@ def contact_force(model, p, overlap, r_eff, m_eff, nx, ny, nz, vn, vtx, vty, vtz
     if fn < 0.0 and model[5] != 0:
         fn = 0.0
     dissipated_n = (fn - f_el) * rate * dt
+    cap = abs(fn)  # the friction limit uses |f_n| when the dashpot pulls (as LAMMPS)
     tangential = model[2]
     if tangential == _COULOMB:
-        ftx, fty, ftz, dissipated_t = tangential_coulomb_force(p[_MU], fn, vtx, vty, vtz, dt)
+        ftx, fty, ftz, dissipated_t = tangential_coulomb_force(p[_MU], cap, vtx, vty, vtz, dt)
     elif tangential == _CUNDALL:
         ftx, fty, ftz, dissipated_t = tangential_spring_force(
-            p[_KT], p[_XT] * c, p[_MU], fn, nx, ny, nz, vtx, vty, vtz, history, dt)
+            p[_KT], p[_XT] * c, p[_MU], cap, nx, ny, nz, vtx, vty, vtz, history, dt)
     elif tangential == _MINDLIN:
         kt = tangential_mindlin_stiffness(p[_G], r_eff, overlap)
         ftx, fty, ftz, dissipated_t = tangential_spring_force(
-            kt, p[_XT] * c, p[_MU], fn, nx, ny, nz, vtx, vty, vtz, history, dt)
+            kt, p[_XT] * c, p[_MU], cap, nx, ny, nz, vtx, vty, vtz, history, dt)
     else:
         ftx = 0.0
         fty = 0.0
@@ -96,3 +97,13 @@ def contact_energy(model, p, overlap, r_eff, history):
         energy += tangential_spring_energy(
             tangential_mindlin_stiffness(p[_G], r_eff, overlap), history)
     return energy
+
+
+@scalar
+def contact_release(model, p, history):
+    """Energy [J] left in the tangential spring when a contact opens; it is lost with
+    the history and counts as tangential dissipation.  (The Mindlin stiffness vanishes
+    with the overlap, so its spring holds nothing at separation.)"""
+    if model[2] == _CUNDALL:
+        return tangential_spring_energy(p[_KT], history)
+    return 0.0

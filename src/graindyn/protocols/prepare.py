@@ -171,7 +171,8 @@ def settle(sim, criterion=None, max_time=5.0, bottom_wall=None, cross_section=No
     container ``cross_section`` area [m^2] (2D: width [m]) between the bottom wall and
     the top of the highest grain; ``_core`` leaves out two diameters at each end, where
     the walls and the free surface loosen the packing), coordination numbers, the apparent weight on
-    ``bottom_wall`` (name) against the total weight, and the energy budget [J].
+    ``bottom_wall`` (a wall name) against the total weight (instantaneous: it still
+    rings with the bed's elastic oscillations), and the energy budget [J].
     """
     criterion = criterion or EnergyRatioBelow(1e-6)
     if not isinstance(criterion, (EnergyRatioBelow, MaxSpeedBelow)):

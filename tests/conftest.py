@@ -1,0 +1,8 @@
+"""Shared fixtures: small deterministic systems."""
+import numpy as np
+import pytest
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(12345)

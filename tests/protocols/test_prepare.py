@@ -1,0 +1,72 @@
+"""Insertion and settling: geometry checks and a settled bed against its weight."""
+import numpy as np
+import pytest
+
+import graindyn as gd
+from graindyn.protocols.prepare import (BoxRegion, CylinderRegion, lattice_insertion,
+                                        random_insertion, settle)
+
+
+def _no_overlap(pos, radii):
+    d = np.linalg.norm(pos[:, None] - pos[None], axis=-1) + np.eye(len(radii)) * 1e9
+    return np.all(d >= radii[:, None] + radii[None] - 1e-15)
+
+
+def test_random_insertion_box_and_cylinder(rng):
+    radii = gd.sample_radii(300, "uniform", rng, d_min=0.85e-3, d_max=1.15e-3)
+    pos, r = random_insertion(radii, BoxRegion((0, 0, 0), (10e-3, 10e-3, 20e-3)), rng)
+    assert _no_overlap(pos, r)
+    assert np.all(pos - r[:, None] >= -1e-15) and np.all(pos[:, 2] + r <= 20e-3 + 1e-15)
+    pos, r = random_insertion(radii, CylinderRegion((0, 0), 4e-3, 0, 60e-3), rng)
+    assert _no_overlap(pos, r)
+    assert np.all(np.hypot(pos[:, 0], pos[:, 1]) + r <= 4e-3 + 1e-15)
+
+
+def test_random_insertion_too_full_is_refused(rng):
+    radii = np.full(500, 0.5e-3)
+    with pytest.raises(ValueError, match="too small"):
+        random_insertion(radii, BoxRegion((0, 0, 0), (5e-3, 5e-3, 5e-3)), rng)
+
+
+def test_lattice_insertion_2d(rng):
+    radii = np.full(50, 0.5e-3)
+    pos, vel = lattice_insertion(radii, BoxRegion((0, 0), (10e-3, 20e-3)), rng, dim=2,
+                                 speed=0.1)
+    assert _no_overlap(pos, radii) and np.allclose(pos[:, 2], 0) and np.allclose(vel[:, 2], 0)
+    assert np.allclose(np.linalg.norm(vel, axis=1), 0.1)
+
+
+def test_radii_distributions(rng):
+    r = gd.sample_radii(20000, "normal", rng, mean=1e-3, std=1e-4, d_min=0.8e-3, d_max=1.2e-3)
+    assert abs(2 * r.mean() - 1e-3) < 5e-6 and 2 * r.min() >= 0.8e-3 and 2 * r.max() <= 1.2e-3
+    r = gd.sample_radii(20000, "lognormal", rng, mean=1e-3, std=2e-4)
+    assert abs(2 * r.mean() - 1e-3) < 1e-5 and abs(np.std(2 * r) - 2e-4) < 1e-5
+    with pytest.raises(ValueError, match="d_min <= d_max"):
+        gd.sample_radii(10, "uniform", rng, d_min=2e-3, d_max=1e-3)
+
+
+def test_settled_bed_carries_its_weight(rng):
+    """A settled bed in a frictionless-walled box: the floor carries the whole weight
+    (no wall friction to hold any of it) and the criterion E_k/E_p <= 1e-6 is reached."""
+    side = 6e-3
+    radii = gd.sample_radii(150, "uniform", rng, d_min=0.9e-3, d_max=1.1e-3)
+    pos, radii = random_insertion(radii, BoxRegion((0, 0, 0), (side, side, 15e-3)), rng)
+    st = gd.State.create(pos, radii, 2650.0)
+    grain = gd.Material(density=2650.0, youngs_modulus=1e7, poisson_ratio=0.3, restitution=0.5,
+                        friction_sliding=0.5, tangential_damping=1.0)
+    wall = gd.Material(density=2650.0, youngs_modulus=1e7, poisson_ratio=0.3, restitution=0.5,
+                       friction_sliding=0.0)
+    sim = gd.Simulation(st, [grain, wall], gd.ContactModel("hertz", "tsuji", "mindlin"),
+                        walls=gd.box((0, 0, 0), (side, side, 30e-3), material=1))
+    report = settle(sim, max_time=1.0, bottom_wall="zlo", cross_section=side * side)
+    assert report["reached"]
+    assert report["apparent_weight_ratio"] == pytest.approx(1.0, abs=0.05)
+    # the instantaneous floor force still rings with the bed's elastic oscillations;
+    # averaged over time it equals the weight (momentum balance)
+    floor = sim.walls.index("zlo")
+    samples = []
+    sim.run(time=0.02, every=[(gd.Periodic(steps=7), lambda s: samples.append(
+        s.walls.normal_force(floor)))])
+    assert np.mean(samples) / report["total_weight_N"] == pytest.approx(1.0, abs=2e-3)
+    assert 0.45 < report["packing_fraction"] < 0.64
+    assert 3.0 < report["coordination_number"] < 7.0
