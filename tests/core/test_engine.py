@@ -344,12 +344,12 @@ def test_elastic_energy_of_a_pair_matches_graindyn():
     on = np.nonzero(r2 < rsum**2)[0]
     assert on.size > 0
     e_star = sim.params[0, 0, COL["youngs_eff"]]
-    hist = np.zeros(3)
+    hist = np.zeros((1, 3))
     for k in on:
         a, b = st.radii[i[k]], st.radii[j[k]]
         h = a + b - np.sqrt(r2[k])
         ours = 8.0 / 15.0 * e_star * np.sqrt(a * b / (a + b)) * h**2.5
-        theirs = contact_energy(sim.model_ids, sim.params[0, 0], h, a * b / (a + b), hist)
+        theirs = contact_energy(sim.model_ids, sim.params, 0, 0, h, a * b / (a + b), hist, 0)
         assert theirs == pytest.approx(ours, rel=1e-12)
 
 

@@ -27,16 +27,16 @@ def _elastic(model, params, positions, radii, materials, periodic_flag, periodic
             rsum = radii[i] + radii[j]
             overlap = rsum - np.sqrt(d2)
             if overlap > 0.0:
-                total += contact_energy(model, params[materials[i], materials[j]], overlap,
-                                        radii[i] * radii[j] / rsum, history[k])
+                total += contact_energy(model, params, materials[i], materials[j], overlap,
+                                        radii[i] * radii[j] / rsum, history, k)
         for q in range(wall_start[i], wall_start[i + 1]):
             w = wall_ids[q]
-            dist, nx, ny, nz = wall_distance(wall_kind[w], wall_geometry[w], wall_offset[w],
+            dist, nx, ny, nz = wall_distance(wall_kind, wall_geometry, wall_offset, w,
                                              positions[i, 0], positions[i, 1], positions[i, 2])
             overlap = radii[i] - dist
             if overlap > 0.0:
-                total += contact_energy(model, params[materials[i], wall_material[w]], overlap,
-                                        radii[i], wall_history[q])
+                total += contact_energy(model, params, materials[i], wall_material[w], overlap,
+                                        radii[i], wall_history, q)
     return total
 
 

@@ -15,17 +15,17 @@ from .walls import wall_distance
 
 
 @scalar
-def contact_response(model, p, overlap, lever_i, lever_j, r_eff, m_eff, nx, ny, nz,
-                     dvx, dvy, dvz, wx, wy, wz, history, dt):
+def contact_response(model, params, a, b, overlap, lever_i, lever_j, r_eff, m_eff, nx, ny, nz,
+                     dvx, dvy, dvz, wx, wy, wz, history, k, dt):
     """Force on i (3) [N] and the lever part of the torques on i and j, (n x f_t) scaled
     by -R'_i and -R'_j, plus the energies dissipated [J].  w = R'_i w_i + R'_j w_j [m/s]."""
     vx = dvx - (wy * nz - wz * ny)
     vy = dvy - (wz * nx - wx * nz)
     vz = dvz - (wx * ny - wy * nx)
     vn = vx * nx + vy * ny + vz * nz
-    fn, ftx, fty, ftz, dn, dt_ = contact_force(model, p, overlap, r_eff, m_eff, nx, ny, nz, vn,
-                                               vx - vn * nx, vy - vn * ny, vz - vn * nz,
-                                               history, dt)
+    fn, ftx, fty, ftz, dn, dt_ = contact_force(model, params, a, b, overlap, r_eff, m_eff,
+                                               nx, ny, nz, vn, vx - vn * nx, vy - vn * ny,
+                                               vz - vn * nz, history, k, dt)
     cx = ny * ftz - nz * fty
     cy = nz * ftx - nx * ftz
     cz = nx * fty - ny * ftx
@@ -49,46 +49,58 @@ def pair_forces(model, params, positions, velocities, angular_velocities, radii,
     dissipated_t = 0.0
     for i in prange(n):
         worst = max_overlap[i]
+        # grain i's data, loaded once (the compiler cannot hoist them past the stores)
+        xi = positions[i, 0]
+        yi = positions[i, 1]
+        zi = positions[i, 2]
+        vxi = velocities[i, 0]
+        vyi = velocities[i, 1]
+        vzi = velocities[i, 2]
+        wxi = angular_velocities[i, 0]
+        wyi = angular_velocities[i, 1]
+        wzi = angular_velocities[i, 2]
+        r_i = radii[i]
+        m_i = masses[i]
+        a = materials[i]
         for k in range(start[i], start[i + 1]):
             j = partners[k]
-            dx = min_image(positions[i, 0] - positions[j, 0], 0, periodic_flag, periodic_length)
-            dy = min_image(positions[i, 1] - positions[j, 1], 1, periodic_flag, periodic_length)
-            dz = min_image(positions[i, 2] - positions[j, 2], 2, periodic_flag, periodic_length)
-            r_i = radii[i]
+            dx = min_image(xi - positions[j, 0], 0, periodic_flag, periodic_length)
+            dy = min_image(yi - positions[j, 1], 1, periodic_flag, periodic_length)
+            dz = min_image(zi - positions[j, 2], 2, periodic_flag, periodic_length)
             r_j = radii[j]
             rsum = r_i + r_j
             d2 = dx * dx + dy * dy + dz * dz
             if d2 >= rsum * rsum:
-                if history[k, 0] != 0.0 or history[k, 1] != 0.0 or history[k, 2] != 0.0:
-                    dissipated_t += contact_release(model, params[materials[i], materials[j]],
-                                                    history[k])
-                for h in range(history.shape[1]):
-                    history[k, h] = 0.0
-                for d in range(3):
-                    pair_force[k, d] = 0.0
-                    pair_torque_i[k, d] = 0.0
-                    pair_torque_j[k, d] = 0.0
+                if pair_force[k, 0] != 0.0 or pair_force[k, 1] != 0.0 or pair_force[k, 2] != 0.0 \
+                        or history[k, 0] != 0.0 or history[k, 1] != 0.0 or history[k, 2] != 0.0:
+                    dissipated_t += contact_release(model, params, a, materials[j], history, k)
+                    for h in range(history.shape[1]):
+                        history[k, h] = 0.0
+                    for d in range(3):
+                        pair_force[k, d] = 0.0
+                        pair_torque_i[k, d] = 0.0
+                        pair_torque_j[k, d] = 0.0
                 continue
             dist = math.sqrt(d2)
+            inv = 1.0 / dist
             overlap = rsum - dist
             worst = max(worst, overlap / min(r_i, r_j))
             if fixed[j]:
-                m_eff = masses[i]
+                m_eff = m_i
             elif fixed[i]:
                 m_eff = masses[j]
             else:
-                m_eff = masses[i] * masses[j] / (masses[i] + masses[j])
-            lever_i = r_i - overlap * r_j / rsum
-            lever_j = r_j - overlap * r_i / rsum
+                m_eff = m_i * masses[j] / (m_i + masses[j])
+            share = overlap / rsum
+            lever_i = r_i - share * r_j
+            lever_j = r_j - share * r_i
             out = contact_response(
-                model, params[materials[i], materials[j]], overlap, lever_i, lever_j,
-                r_i * r_j / rsum, m_eff, dx / dist, dy / dist, dz / dist,
-                velocities[i, 0] - velocities[j, 0], velocities[i, 1] - velocities[j, 1],
-                velocities[i, 2] - velocities[j, 2],
-                lever_i * angular_velocities[i, 0] + lever_j * angular_velocities[j, 0],
-                lever_i * angular_velocities[i, 1] + lever_j * angular_velocities[j, 1],
-                lever_i * angular_velocities[i, 2] + lever_j * angular_velocities[j, 2],
-                history[k], dt)
+                model, params, a, materials[j], overlap, lever_i, lever_j, r_i * r_j / rsum,
+                m_eff, dx * inv, dy * inv, dz * inv, vxi - velocities[j, 0],
+                vyi - velocities[j, 1], vzi - velocities[j, 2],
+                lever_i * wxi + lever_j * angular_velocities[j, 0],
+                lever_i * wyi + lever_j * angular_velocities[j, 1],
+                lever_i * wzi + lever_j * angular_velocities[j, 2], history, k, dt)
             for d in range(3):
                 pair_force[k, d] = out[d]
                 pair_torque_i[k, d] = out[3 + d]
@@ -114,15 +126,15 @@ def wall_forces(model, params, positions, velocities, angular_velocities, radii,
         worst = max_overlap[i]
         for q in range(wall_start[i], wall_start[i + 1]):
             w = wall_ids[q]
-            dist, nx, ny, nz = wall_distance(wall_kind[w], wall_geometry[w], wall_offset[w],
+            dist, nx, ny, nz = wall_distance(wall_kind, wall_geometry, wall_offset, w,
                                              positions[i, 0], positions[i, 1], positions[i, 2])
             r_i = radii[i]
             overlap = r_i - dist
             if overlap <= 0.0:
                 if wall_history[q, 0] != 0.0 or wall_history[q, 1] != 0.0 \
                         or wall_history[q, 2] != 0.0:
-                    dissipated_t += contact_release(
-                        model, params[materials[i], wall_material[w]], wall_history[q])
+                    dissipated_t += contact_release(model, params, materials[i],
+                                                    wall_material[w], wall_history, q)
                 for h in range(wall_history.shape[1]):
                     wall_history[q, h] = 0.0
                 for d in range(3):
@@ -132,12 +144,12 @@ def wall_forces(model, params, positions, velocities, angular_velocities, radii,
             worst = max(worst, overlap / r_i)
             lever = r_i - overlap
             out = contact_response(
-                model, params[materials[i], wall_material[w]], overlap, lever, 0.0, r_i,
+                model, params, materials[i], wall_material[w], overlap, lever, 0.0, r_i,
                 masses[i], nx, ny, nz,
                 velocities[i, 0] - wall_velocity[w, 0], velocities[i, 1] - wall_velocity[w, 1],
                 velocities[i, 2] - wall_velocity[w, 2],
                 lever * angular_velocities[i, 0], lever * angular_velocities[i, 1],
-                lever * angular_velocities[i, 2], wall_history[q], dt)
+                lever * angular_velocities[i, 2], wall_history, q, dt)
             for d in range(3):
                 wall_force[q, d] = out[d]
                 wall_torque[q, d] = out[3 + d]

@@ -29,8 +29,9 @@ def integrator_id(name):
 
 
 @kernel
-def rotate_quaternion(q, wx, wy, wz, dt):
-    """q <- exp(w dt/2) q: the exact rotation by the angle |w| dt about w (world frame)."""
+def rotate_quaternion(q, i, wx, wy, wz, dt):
+    """q[i] <- exp(w dt/2) q[i]: the exact rotation by the angle |w| dt about w (world
+    frame)."""
     w = math.sqrt(wx * wx + wy * wy + wz * wz)
     if w == 0.0:
         return
@@ -40,11 +41,11 @@ def rotate_quaternion(q, wx, wy, wz, dt):
     ax = s * wx
     ay = s * wy
     az = s * wz
-    q0, q1, q2, q3 = q[0], q[1], q[2], q[3]
-    q[0] = c * q0 - ax * q1 - ay * q2 - az * q3
-    q[1] = c * q1 + ax * q0 + ay * q3 - az * q2
-    q[2] = c * q2 - ax * q3 + ay * q0 + az * q1
-    q[3] = c * q3 + ax * q2 - ay * q1 + az * q0
+    q0, q1, q2, q3 = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
+    q[i, 0] = c * q0 - ax * q1 - ay * q2 - az * q3
+    q[i, 1] = c * q1 + ax * q0 + ay * q3 - az * q2
+    q[i, 2] = c * q2 - ax * q3 + ay * q0 + az * q1
+    q[i, 3] = c * q3 + ax * q2 - ay * q1 + az * q0
 
 
 @parallel
@@ -57,7 +58,7 @@ def before_force(integrator, stage, dt, positions, velocities, angular_velocitie
         for d in range(3):
             positions[i, d] += velocities[i, d] * dt + 0.5 * accelerations[i, d] * dt * dt
             velocities[i, d] += accelerations[i, d] * dt
-        rotate_quaternion(orientations[i],
+        rotate_quaternion(orientations, i,
                           angular_velocities[i, 0] + 0.5 * angular_accelerations[i, 0] * dt,
                           angular_velocities[i, 1] + 0.5 * angular_accelerations[i, 1] * dt,
                           angular_velocities[i, 2] + 0.5 * angular_accelerations[i, 2] * dt, dt)

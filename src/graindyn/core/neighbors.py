@@ -211,7 +211,7 @@ def _wall_candidates(positions, radii, skin, kind, geometry, offset, wall_start,
     for i in prange(n):
         k = 0
         for w in range(kind.size):
-            dist, nx, ny, nz = wall_distance(kind[w], geometry[w], offset[w], positions[i, 0],
+            dist, nx, ny, nz = wall_distance(kind, geometry, offset, w, positions[i, 0],
                                              positions[i, 1], positions[i, 2])
             if dist < radii[i] + skin:
                 if write:

@@ -200,26 +200,26 @@ class Walls:
 
 
 @scalar
-def wall_distance(kind, geometry, offset, x, y, z):
-    """Distance [m] from the wall surface to a point, and the unit normal pointing from
-    the wall to the point (plane: signed distance on the normal side; cylinder: radius
-    minus the distance to the axis)."""
-    px = x - geometry[0] - offset[0]
-    py = y - geometry[1] - offset[1]
-    pz = z - geometry[2] - offset[2]
-    ax = geometry[3]
-    ay = geometry[4]
-    az = geometry[5]
+def wall_distance(kind, geometry, offset, w, x, y, z):
+    """Distance [m] from the surface of wall w to a point, and the unit normal pointing
+    from the wall to the point (plane: signed distance on the normal side; cylinder:
+    radius minus the distance to the axis)."""
+    px = x - geometry[w, 0] - offset[w, 0]
+    py = y - geometry[w, 1] - offset[w, 1]
+    pz = z - geometry[w, 2] - offset[w, 2]
+    ax = geometry[w, 3]
+    ay = geometry[w, 4]
+    az = geometry[w, 5]
     along = px * ax + py * ay + pz * az
-    if kind == PLANE:
+    if kind[w] == PLANE:
         return along, ax, ay, az
     rx = px - along * ax
     ry = py - along * ay
     rz = pz - along * az
     rho = math.sqrt(rx * rx + ry * ry + rz * rz)
     if rho == 0.0:
-        return geometry[6], 1.0, 0.0, 0.0
-    return geometry[6] - rho, -rx / rho, -ry / rho, -rz / rho
+        return geometry[w, 6], 1.0, 0.0, 0.0
+    return geometry[w, 6] - rho, -rx / rho, -ry / rho, -rz / rho
 
 
 @kernel

@@ -33,29 +33,34 @@ _MU = COL["friction_sliding"]
 
 
 @scalar
-def contact_force(model, p, overlap, r_eff, m_eff, nx, ny, nz, vn, vtx, vty, vtz, history, dt):
+def contact_force(model, params, a, b, overlap, r_eff, m_eff, nx, ny, nz, vn, vtx, vty, vtz,
+                  history, k, dt):
     """Force on grain i of one contact with overlap > 0.
 
     model : (6,) int ids (normal, damping, tangential, rolling, twisting) and the
         limit_damping flag: 1 keeps the normal force repulsive (Perez Eq. 14, 17),
         0 lets the dashpot pull at the end of a contact (the LAMMPS default)
-    p : (NCOL,) pair parameters;  overlap [m];  r_eff [m];  m_eff [kg]
+    params[a, b] : (NCOL,) parameters of the material pair (a, b);  overlap [m];
+    r_eff [m];  m_eff [kg]
     n : unit normal from j to i;  vn = v_rel.n [m/s] (negative when approaching)
     v_t : tangential relative velocity of i at the contact point [m/s]
-    history : per-contact history values, updated in place;  dt [s]
+    history[k] : this contact's history values, updated in place;  dt [s]
+    (Whole arrays and indices are passed rather than row views: a view costs two
+    atomic reference-count updates per contact in numba.)
     Returns (f_n >= 0 [N], f_t (3) [N], normal and tangential energy dissipated [J]).
     """
     if model[0] == _HOOKE:
-        f_el = normal_hooke_force(overlap, p[_KN])
+        f_el = normal_hooke_force(overlap, params[a, b, _KN])
     else:
-        f_el = normal_hertz_force(overlap, r_eff, p[_E])
+        f_el = normal_hertz_force(overlap, r_eff, params[a, b, _E])
     damping = model[1]
     if damping == _LINEAR:
-        c = damping_linear_coefficient(m_eff, p[_KN], p[_BETA], p[_GAMMA0])
+        c = damping_linear_coefficient(m_eff, params[a, b, _KN], params[a, b, _BETA],
+                                       params[a, b, _GAMMA0])
     elif damping == _VISCOELASTIC:
-        c = damping_viscoelastic_coefficient(m_eff, overlap, p[_GAMMA_N])
+        c = damping_viscoelastic_coefficient(m_eff, overlap, params[a, b, _GAMMA_N])
     elif damping == _TSUJI:
-        c = damping_tsuji_coefficient(m_eff, overlap, f_el, p[_ALPHA])
+        c = damping_tsuji_coefficient(m_eff, overlap, f_el, params[a, b, _ALPHA])
     else:
         c = 0.0
     rate = -vn
@@ -66,14 +71,17 @@ def contact_force(model, p, overlap, r_eff, m_eff, nx, ny, nz, vn, vtx, vty, vtz
     cap = abs(fn)  # the friction limit uses |f_n| when the dashpot pulls (as LAMMPS)
     tangential = model[2]
     if tangential == _COULOMB:
-        ftx, fty, ftz, dissipated_t = tangential_coulomb_force(p[_MU], cap, vtx, vty, vtz, dt)
+        ftx, fty, ftz, dissipated_t = tangential_coulomb_force(params[a, b, _MU], cap, vtx, vty,
+                                                               vtz, dt)
     elif tangential == _CUNDALL:
         ftx, fty, ftz, dissipated_t = tangential_spring_force(
-            p[_KT], p[_XT] * c, p[_MU], cap, nx, ny, nz, vtx, vty, vtz, history, dt)
+            params[a, b, _KT], params[a, b, _XT] * c, params[a, b, _MU], cap, nx, ny, nz,
+            vtx, vty, vtz, history, k, dt)
     elif tangential == _MINDLIN:
-        kt = tangential_mindlin_stiffness(p[_G], r_eff, overlap)
+        kt = tangential_mindlin_stiffness(params[a, b, _G], r_eff, overlap)
         ftx, fty, ftz, dissipated_t = tangential_spring_force(
-            kt, p[_XT] * c, p[_MU], cap, nx, ny, nz, vtx, vty, vtz, history, dt)
+            kt, params[a, b, _XT] * c, params[a, b, _MU], cap, nx, ny, nz, vtx, vty, vtz,
+            history, k, dt)
     else:
         ftx = 0.0
         fty = 0.0
@@ -83,27 +91,27 @@ def contact_force(model, p, overlap, r_eff, m_eff, nx, ny, nz, vn, vtx, vty, vtz
 
 
 @scalar
-def contact_energy(model, p, overlap, r_eff, history):
+def contact_energy(model, params, a, b, overlap, r_eff, history, k):
     """Elastic energy [J] stored in one contact: normal spring plus tangential spring."""
     if overlap <= 0.0:
         return 0.0
     if model[0] == _HOOKE:
-        energy = normal_hooke_energy(overlap, p[_KN])
+        energy = normal_hooke_energy(overlap, params[a, b, _KN])
     else:
-        energy = normal_hertz_energy(overlap, r_eff, p[_E])
+        energy = normal_hertz_energy(overlap, r_eff, params[a, b, _E])
     if model[2] == _CUNDALL:
-        energy += tangential_spring_energy(p[_KT], history)
+        energy += tangential_spring_energy(params[a, b, _KT], history, k)
     elif model[2] == _MINDLIN:
         energy += tangential_spring_energy(
-            tangential_mindlin_stiffness(p[_G], r_eff, overlap), history)
+            tangential_mindlin_stiffness(params[a, b, _G], r_eff, overlap), history, k)
     return energy
 
 
 @scalar
-def contact_release(model, p, history):
+def contact_release(model, params, a, b, history, k):
     """Energy [J] left in the tangential spring when a contact opens; it is lost with
     the history and counts as tangential dissipation.  (The Mindlin stiffness vanishes
     with the overlap, so its spring holds nothing at separation.)"""
     if model[2] == _CUNDALL:
-        return tangential_spring_energy(p[_KT], history)
+        return tangential_spring_energy(params[a, b, _KT], history, k)
     return 0.0

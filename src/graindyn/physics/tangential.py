@@ -18,10 +18,10 @@ def tangential_coulomb_force(mu, fn, vtx, vty, vtz, dt):
 
 
 @scalar
-def tangential_spring_force(kt, eta_t, mu, fn, nx, ny, nz, vtx, vty, vtz, history, dt):
+def tangential_spring_force(kt, eta_t, mu, fn, nx, ny, nz, vtx, vty, vtz, history, k, dt):
     """Capped tangential spring with dashpot: Cundall-Strack (Perez Eq. 20-23) in 3D.
 
-    history[0:3] holds the spring elongation zeta [m].  Each step zeta is first rotated
+    history[k, 0:3] holds the spring elongation zeta [m].  Each step zeta is first rotated
     into the current tangent plane keeping its length, then grows by v_t dt (Eq. 20);
     the trial force f = -kt zeta - eta_t v_t is capped at mu f_n (Eq. 22), and when it
     is capped zeta is reset so that the spring and dashpot give exactly the capped
@@ -29,9 +29,9 @@ def tangential_spring_force(kt, eta_t, mu, fn, nx, ny, nz, vtx, vty, vtz, histor
     kt [N/m], eta_t [kg/s].  Returns f_t (3) and the energy dissipated in the step,
     the work -f_t.v_t dt not stored in the spring.
     """
-    zx = history[0]
-    zy = history[1]
-    zz = history[2]
+    zx = history[k, 0]
+    zy = history[k, 1]
+    zz = history[k, 2]
     old = zx * zx + zy * zy + zz * zz
     if old > 0.0:
         zn = zx * nx + zy * ny + zz * nz
@@ -66,9 +66,9 @@ def tangential_spring_force(kt, eta_t, mu, fn, nx, ny, nz, vtx, vty, vtz, histor
             zx = 0.0
             zy = 0.0
             zz = 0.0
-    history[0] = zx
-    history[1] = zy
-    history[2] = zz
+    history[k, 0] = zx
+    history[k, 1] = zy
+    history[k, 2] = zz
     energy_after = 0.5 * kt * (zx * zx + zy * zy + zz * zz)
     work = -(fx * vtx + fy * vty + fz * vtz) * dt
     return fx, fy, fz, work - (energy_after - energy_before)
@@ -81,6 +81,6 @@ def tangential_mindlin_stiffness(shear_eff, r_eff, overlap):
 
 
 @scalar
-def tangential_spring_energy(kt, history):
-    """Energy kt |zeta|^2/2 [J] stored in a tangential spring."""
-    return 0.5 * kt * (history[0] * history[0] + history[1] * history[1] + history[2] * history[2])
+def tangential_spring_energy(kt, history, k):
+    """Energy kt |zeta|^2/2 [J] stored in the tangential spring history[k, 0:3]."""
+    return 0.5 * kt * (history[k, 0] ** 2 + history[k, 1] ** 2 + history[k, 2] ** 2)
