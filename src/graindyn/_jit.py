@@ -36,7 +36,7 @@ CACHE_ROOT = pathlib.Path(os.environ.get("GRAINDYN_CACHE_DIR",
 CACHE_DIR = CACHE_ROOT / source_digest()
 numba.config.CACHE_DIR = str(CACHE_DIR)
 
-scalar = numba.njit(cache=True, error_model="numpy")
+scalar = numba.njit(cache=True, error_model="numpy", inline="always")
 kernel = numba.njit(cache=True, error_model="numpy")
 parallel = numba.njit(cache=True, error_model="numpy", parallel=True)
 prange = numba.prange
