@@ -21,8 +21,8 @@ def _elastic(model, params, positions, radii, materials, periodic_flag, periodic
             j = partners[k]
             d2 = 0.0
             for d in range(3):
-                dx = min_image(positions[i, d] - positions[j, d], d, periodic_flag,
-                               periodic_length)
+                dx = min_image(positions[i, d] - positions[j, d], periodic_flag[d],
+                               periodic_length[d])
                 d2 += dx * dx
             rsum = radii[i] + radii[j]
             overlap = rsum - np.sqrt(d2)

@@ -1,6 +1,7 @@
 """Contact forces: pair geometry -> physics.contact_force -> per-contact arrays, and the
 deterministic gather of those arrays onto grains (each grain sums its own contacts in
-fixed order: no atomics, same numbers for the same thread count).
+fixed order: no atomics, same numbers for the same thread count).  The gather runs
+inside the integrator's pass over grains (integrators.after_force).
 
 Geometry (Oquendo Eq. 3-4): n = (r_i - r_j)/|r_i - r_j|, overlap h = R_i + R_j - |r_i - r_j|,
 the contact point sits at R'_i = R_i - h R_j/(R_i + R_j) from grain i, and the relative
@@ -47,6 +48,8 @@ def pair_forces(model, params, positions, velocities, angular_velocities, radii,
     n = positions.shape[0]
     dissipated_n = 0.0
     dissipated_t = 0.0
+    px, py, pz = periodic_flag[0], periodic_flag[1], periodic_flag[2]
+    lx, ly, lz = periodic_length[0], periodic_length[1], periodic_length[2]
     for i in prange(n):
         worst = max_overlap[i]
         # grain i's data, loaded once (the compiler cannot hoist them past the stores)
@@ -64,9 +67,9 @@ def pair_forces(model, params, positions, velocities, angular_velocities, radii,
         a = materials[i]
         for k in range(start[i], start[i + 1]):
             j = partners[k]
-            dx = min_image(xi - positions[j, 0], 0, periodic_flag, periodic_length)
-            dy = min_image(yi - positions[j, 1], 1, periodic_flag, periodic_length)
-            dz = min_image(zi - positions[j, 2], 2, periodic_flag, periodic_length)
+            dx = min_image(xi - positions[j, 0], px, lx)
+            dy = min_image(yi - positions[j, 1], py, ly)
+            dz = min_image(zi - positions[j, 2], pz, lz)
             r_j = radii[j]
             rsum = r_i + r_j
             d2 = dx * dx + dy * dy + dz * dz
@@ -159,42 +162,37 @@ def wall_forces(model, params, positions, velocities, angular_velocities, radii,
     return dissipated_n, dissipated_t
 
 
-@parallel
-def gather(masses, gravity, start, reverse_start, reverse_pairs, pair_force, pair_torque_i,
-           pair_torque_j, wall_start, wall_force, wall_torque, forces, torques):
-    """forces[i] = m_i g + sum of its pair and wall contact forces, in fixed order."""
-    for i in prange(masses.size):
-        fx = masses[i] * gravity[0]
-        fy = masses[i] * gravity[1]
-        fz = masses[i] * gravity[2]
-        tx = 0.0
-        ty = 0.0
-        tz = 0.0
-        for k in range(start[i], start[i + 1]):
-            fx += pair_force[k, 0]
-            fy += pair_force[k, 1]
-            fz += pair_force[k, 2]
-            tx += pair_torque_i[k, 0]
-            ty += pair_torque_i[k, 1]
-            tz += pair_torque_i[k, 2]
-        for s in range(reverse_start[i], reverse_start[i + 1]):
-            k = reverse_pairs[s]
-            fx -= pair_force[k, 0]
-            fy -= pair_force[k, 1]
-            fz -= pair_force[k, 2]
-            tx += pair_torque_j[k, 0]
-            ty += pair_torque_j[k, 1]
-            tz += pair_torque_j[k, 2]
-        for q in range(wall_start[i], wall_start[i + 1]):
-            fx += wall_force[q, 0]
-            fy += wall_force[q, 1]
-            fz += wall_force[q, 2]
-            tx += wall_torque[q, 0]
-            ty += wall_torque[q, 1]
-            tz += wall_torque[q, 2]
-        forces[i, 0] = fx
-        forces[i, 1] = fy
-        forces[i, 2] = fz
-        torques[i, 0] = tx
-        torques[i, 1] = ty
-        torques[i, 2] = tz
+@scalar
+def gather_grain(i, mass, gravity, start, reverse_start, reverse_pairs, pair_force,
+                 pair_torque_i, pair_torque_j, wall_start, wall_force, wall_torque):
+    """Force [N] and torque [N m] on grain i: m_i g plus its pair contacts (as first
+    member, then as second member) and its wall contacts, always in this order."""
+    fx = mass * gravity[0]
+    fy = mass * gravity[1]
+    fz = mass * gravity[2]
+    tx = 0.0
+    ty = 0.0
+    tz = 0.0
+    for k in range(start[i], start[i + 1]):
+        fx += pair_force[k, 0]
+        fy += pair_force[k, 1]
+        fz += pair_force[k, 2]
+        tx += pair_torque_i[k, 0]
+        ty += pair_torque_i[k, 1]
+        tz += pair_torque_i[k, 2]
+    for s in range(reverse_start[i], reverse_start[i + 1]):
+        k = reverse_pairs[s]
+        fx -= pair_force[k, 0]
+        fy -= pair_force[k, 1]
+        fz -= pair_force[k, 2]
+        tx += pair_torque_j[k, 0]
+        ty += pair_torque_j[k, 1]
+        tz += pair_torque_j[k, 2]
+    for q in range(wall_start[i], wall_start[i + 1]):
+        fx += wall_force[q, 0]
+        fy += wall_force[q, 1]
+        fz += wall_force[q, 2]
+        tx += wall_torque[q, 0]
+        ty += wall_torque[q, 1]
+        tz += wall_torque[q, 2]
+    return fx, fy, fz, tx, ty, tz

@@ -5,7 +5,8 @@ One step (the order is fixed here and nowhere else):
      half the skin by the end of the step; on capacity overflow return GROW before
      anything has changed, so the caller grows the arrays and calls again;
   2. for each integrator stage: drift/predict, move prescribed walls, contact forces
-     (pairs, then walls), gather onto grains, correct;
+     (pairs, then walls), then one pass over grains that gathers their contact forces,
+     corrects the velocities and bounds the displacement for the next step's check;
   3. time += dt, step += 1;
   4. every ``check_interval`` steps: NaN, excessive overlap, and the stop condition.
 Dissipated energies and the work of moving walls are accumulated in ``clock``.
@@ -15,15 +16,16 @@ import math
 import numpy as np
 
 from .._jit import kernel
-from .contacts import gather, pair_forces, wall_forces
+from .contacts import pair_forces, wall_forces
 from .integrators import STAGES, after_force, before_force
-from .neighbors import max_displacement, rebuild
+from .neighbors import rebuild
 from .walls import walls_advance
 
 # return codes of run_chunk
 DONE, CONDITION, GROW, NAN, OVERLAP = 0, 1, 2, 3, 4
 # clock (float64) slots
-TIME, DT, SKIN, GX, GY, GZ, COND_VALUE, OVERLAP_LIMIT, DISS_N, DISS_T, WALL_WORK = range(11)
+TIME, DT, SKIN, GX, GY, GZ, COND_VALUE, OVERLAP_LIMIT, DISS_N, DISS_T, WALL_WORK, MOVE = \
+    range(12)
 # counters (int64) slots
 STEP, DIM, INTEGRATOR, REBUILDS, FORCE_REBUILD, CHECK_INTERVAL, COND_KIND, PRIMED, \
     NEED_PAIRS, NEED_WALLS = range(10)
@@ -33,7 +35,7 @@ NO_CONDITION, MAX_SPEED_BELOW, ENERGY_RATIO_BELOW = 0, 1, 2
 
 def new_clock(dt, skin, gravity):
     """The float64 clock array of a simulation."""
-    clock = np.zeros(11)
+    clock = np.zeros(12)
     clock[DT] = dt
     clock[SKIN] = skin
     clock[GX:GZ + 1] = gravity
@@ -43,7 +45,8 @@ def new_clock(dt, skin, gravity):
 
 @kernel
 def evaluate_forces(model, params, grains, pairs, walls, periodic, gravity, dt):
-    """All contact forces and their gather; returns (normal, tangential) dissipation [J]."""
+    """All contact forces and the total force on each wall; returns the (normal,
+    tangential) energy dissipated [J] and the power of the walls on the grains [W]."""
     (positions, velocities, angular_velocities, orientations, forces, torques, accelerations,
      angular_accelerations, radii, masses, inertias, materials, fixed, reference_positions,
      max_overlap) = grains
@@ -60,8 +63,6 @@ def evaluate_forces(model, params, grains, pairs, walls, periodic, gravity, dt):
                          masses, materials, kind, geometry, offset, velocity, material,
                          wall_start, wall_ids, wall_history, contact_force, contact_torque,
                          max_overlap, dt)
-    gather(masses, gravity, start, reverse_start, reverse_pairs, pair_force, pair_torque_i,
-           pair_torque_j, wall_start, contact_force, contact_torque, forces, torques)
     force[:] = 0.0
     power = 0.0
     for i in range(masses.size):
@@ -133,6 +134,23 @@ def _checks(grains, counters, clock):
 
 
 @kernel
+def _after(integrator, stage, dt, counters, gravity, grains, pairs, walls, periodic,
+           block_scratch):
+    """integrators.after_force with the arrays it needs taken out of the bundles."""
+    (positions, velocities, angular_velocities, orientations, forces, torques, accelerations,
+     angular_accelerations, radii, masses, inertias, materials, fixed, reference_positions,
+     max_overlap) = grains
+    (kind, geometry, motion_kind, motion, base, offset, velocity, material, force,
+     reference_offset, wall_start, wall_ids, wall_history, scratch_wall_start,
+     scratch_wall_ids, scratch_wall_history, contact_force, contact_torque) = walls
+    return after_force(integrator, stage, dt, counters[DIM], gravity, pairs, wall_start,
+                       contact_force, contact_torque, forces, torques, masses, inertias,
+                       positions,
+                       reference_positions, velocities, angular_velocities, accelerations,
+                       angular_accelerations, fixed, periodic[0], periodic[2], block_scratch)
+
+
+@kernel
 def run_chunk(model, params, grains, pairs, walls, periodic, clock, counters, block_scratch,
               nsteps):
     """Advance up to ``nsteps`` steps; returns (status, steps done)."""
@@ -152,8 +170,7 @@ def run_chunk(model, params, grains, pairs, walls, periodic, clock, counters, bl
     for s in range(nsteps):
         rebuild_now = counters[FORCE_REBUILD] != 0
         if not rebuild_now:
-            grain_move = max_displacement(positions, reference_positions, velocities,
-                                          accelerations, dt, flag, length, block_scratch)
+            grain_move = clock[MOVE]
             wall_move = 0.0
             for w in range(kind.size):
                 d2 = 0.0
@@ -178,9 +195,8 @@ def run_chunk(model, params, grains, pairs, walls, periodic, clock, counters, bl
             counters[REBUILDS] += 1
         if counters[PRIMED] == 0:
             evaluate_forces(model, params, grains, pairs, walls, periodic, gravity, 0.0)
-            after_force(integrator, 0, 0.0, counters[DIM], forces, torques, masses, inertias,
-                        velocities, angular_velocities, accelerations, angular_accelerations,
-                        fixed)
+            clock[MOVE] = _after(integrator, 0, 0.0, counters, gravity, grains, pairs, walls,
+                                 periodic, block_scratch)
             counters[PRIMED] = 1
         for stage in range(STAGES[integrator]):
             before_force(integrator, stage, dt, positions, velocities, angular_velocities,
@@ -192,9 +208,8 @@ def run_chunk(model, params, grains, pairs, walls, periodic, clock, counters, bl
             clock[DISS_N] += dn
             clock[DISS_T] += dtan
             clock[WALL_WORK] += power * dt
-            after_force(integrator, stage, dt, counters[DIM], forces, torques, masses,
-                        inertias, velocities, angular_velocities, accelerations,
-                        angular_accelerations, fixed)
+            clock[MOVE] = _after(integrator, stage, dt, counters, gravity, grains, pairs,
+                                 walls, periodic, block_scratch)
         clock[TIME] += dt
         counters[STEP] += 1
         if counters[STEP] % counters[CHECK_INTERVAL] == 0 or s == nsteps - 1:

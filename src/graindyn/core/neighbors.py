@@ -14,15 +14,15 @@ import math
 
 import numpy as np
 
-from .._jit import kernel, parallel, prange
+from .._jit import kernel, parallel, prange, scalar
 from .walls import wall_distance
 
 
-@kernel
-def min_image(dx, d, periodic_flag, periodic_length):
-    """Minimum-image component of a separation along axis d."""
-    if periodic_flag[d]:
-        length = periodic_length[d]
+@scalar
+def min_image(dx, periodic, length):
+    """Minimum-image separation along an axis of period ``length`` (scalar arguments:
+    arrays passed to a non-inlined function cost reference counting in hot loops)."""
+    if periodic:
         dx -= length * math.floor(dx / length + 0.5)
     return dx
 
@@ -139,8 +139,8 @@ def _scan_grain(i, positions, radii, skin, cell, counts, cell_start, cell_items,
                         continue
                     r2 = 0.0
                     for d in range(3):
-                        dx = min_image(positions[i, d] - positions[j, d], d, periodic_flag,
-                                       periodic_length)
+                        dx = min_image(positions[i, d] - positions[j, d], periodic_flag[d],
+                                       periodic_length[d])
                         r2 += dx * dx
                     cut = radii[i] + radii[j] + skin
                     if r2 < cut * cut:
@@ -266,27 +266,3 @@ def rebuild(positions, radii, skin, periodic_flag, periodic_lo, periodic_length,
     reference_positions[:] = positions
     reference_offset[:] = wall_offset
     return needed, wall_needed
-
-
-@parallel
-def max_displacement(positions, reference, velocities, accelerations, dt, periodic_flag,
-                     periodic_length, scratch):
-    """Largest |r - r_ref| plus a bound on the next drift |v| dt + |a| dt^2/2 [m]."""
-    n = positions.shape[0]
-    nblock = scratch.size
-    for b in prange(nblock):
-        best = 0.0
-        for i in range(b * n // nblock, (b + 1) * n // nblock):
-            d2 = 0.0
-            v2 = 0.0
-            a2 = 0.0
-            for d in range(3):
-                dx = min_image(positions[i, d] - reference[i, d], d, periodic_flag,
-                               periodic_length)
-                d2 += dx * dx
-                v2 += velocities[i, d] * velocities[i, d]
-                a2 += accelerations[i, d] * accelerations[i, d]
-            s = math.sqrt(d2) + math.sqrt(v2) * dt + 0.5 * math.sqrt(a2) * dt * dt
-            best = max(best, s)
-        scratch[b] = best
-    return scratch.max()
