@@ -90,12 +90,14 @@ def after_force(integrator, stage, dt, dim, gravity, pairs, wall_start, wall_for
             d2 = 0.0
             v2 = 0.0
             a2 = 0.0
+            inverse_mass = 1.0 / masses[i]
+            inverse_inertia = 1.0 / inertias[i]
             for d in range(3):
                 forces[i, d] = f[d]
                 torques[i, d] = f[3 + d]
                 if not fixed[i]:
-                    a = f[d] / masses[i]
-                    alpha = f[3 + d] / inertias[i]
+                    a = f[d] * inverse_mass
+                    alpha = f[3 + d] * inverse_inertia
                     if dim == 2:
                         if d == 2:
                             a = 0.0

@@ -4,11 +4,12 @@ Order (as LAMMPS GRANULAR): elastic normal force, damping, clamp to repulsive,
 tangential law capped by the normal force.  Rolling and twisting resistance have the
 id 0 ("none") only, for now.  Law ids and table columns come from physics/registry.py.
 """
+import math
+
 from .._jit import scalar
 from .damping import (damping_linear_coefficient, damping_tsuji_coefficient,
                       damping_viscoelastic_coefficient)
-from .normal import (normal_hertz_energy, normal_hertz_force, normal_hooke_energy,
-                     normal_hooke_force)
+from .normal import normal_hertz_energy, normal_hertz_stiffness, normal_hooke_energy
 from .registry import COL, DAMPING, NORMAL, TANGENTIAL
 from .tangential import (tangential_coulomb_force, tangential_mindlin_stiffness,
                          tangential_spring_energy, tangential_spring_force)
@@ -49,10 +50,12 @@ def contact_force(model, params, a, b, overlap, r_eff, m_eff, nx, ny, nz, vn, vt
     atomic reference-count updates per contact in numba.)
     Returns (f_n >= 0 [N], f_t (3) [N], normal and tangential energy dissipated [J]).
     """
+    radius = math.sqrt(r_eff * overlap)  # Hertz contact radius a [m]
     if model[0] == _HOOKE:
-        f_el = normal_hooke_force(overlap, params[a, b, _KN])
+        stiffness = params[a, b, _KN]
     else:
-        f_el = normal_hertz_force(overlap, r_eff, params[a, b, _E])
+        stiffness = normal_hertz_stiffness(radius, params[a, b, _E])
+    f_el = stiffness * overlap  # Perez Eq. 14 / Eq. 17, Oquendo Eq. 1
     damping = model[1]
     if damping == _LINEAR:
         c = damping_linear_coefficient(m_eff, params[a, b, _KN], params[a, b, _BETA],
@@ -60,7 +63,7 @@ def contact_force(model, params, a, b, overlap, r_eff, m_eff, nx, ny, nz, vn, vt
     elif damping == _VISCOELASTIC:
         c = damping_viscoelastic_coefficient(m_eff, overlap, params[a, b, _GAMMA_N])
     elif damping == _TSUJI:
-        c = damping_tsuji_coefficient(m_eff, overlap, f_el, params[a, b, _ALPHA])
+        c = damping_tsuji_coefficient(m_eff, stiffness, params[a, b, _ALPHA])
     else:
         c = 0.0
     rate = -vn
@@ -78,7 +81,7 @@ def contact_force(model, params, a, b, overlap, r_eff, m_eff, nx, ny, nz, vn, vt
             params[a, b, _KT], params[a, b, _XT] * c, params[a, b, _MU], cap, nx, ny, nz,
             vtx, vty, vtz, history, k, dt)
     elif tangential == _MINDLIN:
-        kt = tangential_mindlin_stiffness(params[a, b, _G], r_eff, overlap)
+        kt = tangential_mindlin_stiffness(params[a, b, _G], radius)
         ftx, fty, ftz, dissipated_t = tangential_spring_force(
             kt, params[a, b, _XT] * c, params[a, b, _MU], cap, nx, ny, nz, vtx, vty, vtz,
             history, k, dt)
@@ -102,8 +105,8 @@ def contact_energy(model, params, a, b, overlap, r_eff, history, k):
     if model[2] == _CUNDALL:
         energy += tangential_spring_energy(params[a, b, _KT], history, k)
     elif model[2] == _MINDLIN:
-        energy += tangential_spring_energy(
-            tangential_mindlin_stiffness(params[a, b, _G], r_eff, overlap), history, k)
+        kt = tangential_mindlin_stiffness(params[a, b, _G], math.sqrt(r_eff * overlap))
+        energy += tangential_spring_energy(kt, history, k)
     return energy
 
 

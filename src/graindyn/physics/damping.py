@@ -25,13 +25,14 @@ def damping_viscoelastic_coefficient(m_eff, overlap, gamma_n):
 
 
 @scalar
-def damping_tsuji_coefficient(m_eff, overlap, force_elastic, alpha):
-    """c = sqrt(2) alpha sqrt(m* f_el/xi) [kg/s]: Tsuji et al. 1992, as LAMMPS `damping tsuji`.
+def damping_tsuji_coefficient(m_eff, stiffness, alpha):
+    """c = sqrt(2) alpha sqrt(m* k) [kg/s], k = f_el/xi the secant stiffness [N/m]:
+    Tsuji et al. 1992, as LAMMPS `damping tsuji`.
 
-    For Hertz f_el/xi = 4/3 E* sqrt(R* xi) (the secant stiffness), so c grows as
+    For Hertz k = 4/3 E* sqrt(R* xi), so c grows as
     xi^(1/4) and the restitution does not depend on the impact speed; alpha(e) from
     physics.reference.tsuji_alpha.  The sqrt(2) is Tsuji's effective-mass convention,
     as in the LAMMPS source; with it the polynomial reproduces e within 1.1e-3 for
     0.1 <= e <= 0.99 when the force may turn attractive (``limit_damping`` off).
     """
-    return 1.4142135623730951 * alpha * math.sqrt(m_eff * force_elastic / overlap)
+    return 1.4142135623730951 * alpha * math.sqrt(m_eff * stiffness)

@@ -75,9 +75,9 @@ def tangential_spring_force(kt, eta_t, mu, fn, nx, ny, nz, vtx, vty, vtz, histor
 
 
 @scalar
-def tangential_mindlin_stiffness(shear_eff, r_eff, overlap):
-    """Mindlin no-slip stiffness kt = 8 G* sqrt(R* xi) [N/m] (Karrech Eq. 6)."""
-    return 8.0 * shear_eff * math.sqrt(r_eff * overlap)
+def tangential_mindlin_stiffness(shear_eff, contact_radius):
+    """Mindlin no-slip stiffness kt = 8 G* a [N/m], a = sqrt(R* xi) (Karrech Eq. 6)."""
+    return 8.0 * shear_eff * contact_radius
 
 
 @scalar
