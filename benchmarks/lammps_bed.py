@@ -50,7 +50,8 @@ def main(argv):
     print(f"wall {wall:.6f}")
     print(f"zpp {coordination_number(sim):.4f}")
     print(f"particle_steps_per_s {n * int(steps) / wall:.4g} threads {threads} N {n} "
-          f"peak_rss_bytes {rss} rebuilds {sim.rebuilds}")
+          f"array_bytes_per_grain {sim.memory_bytes() / n:.0f} peak_rss_bytes {rss} "
+          f"rebuilds {sim.rebuilds}")
 
 
 if __name__ == "__main__":

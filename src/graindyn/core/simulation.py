@@ -88,8 +88,9 @@ class Simulation:
         self.max_overlap = np.zeros(n)
         self.block_scratch = np.zeros(64)
         self.history_size = max(3, self.model.history_size)
-        self._allocate_pairs(8 * n + 64)
-        self._allocate_walls(n + 16)
+        # start small: the first build grows the lists to 1.3 x what it needs
+        self._allocate_pairs(2 * n + 64)
+        self._allocate_walls(n // 4 + 16)
 
     # ------------------------------------------------------------------ storage
     def _allocate_pairs(self, capacity, keep=0):
@@ -105,7 +106,7 @@ class Simulation:
             history[:m] = old[2][:m]
         self.pairs = (start, partners, history, np.zeros(n + 1, np.int64),
                       np.zeros(capacity, np.int32), np.zeros((capacity, h)),
-                      np.zeros(n + 1, np.int64), np.zeros(capacity, np.int64),
+                      np.zeros(n + 1, np.int64), np.zeros(capacity, np.int32),
                       np.zeros((capacity, 3)), np.zeros((capacity, 3)), np.zeros((capacity, 3)))
 
     def _allocate_walls(self, capacity):
@@ -237,6 +238,12 @@ class Simulation:
         return "done"
 
     # ------------------------------------------------------------------ contacts
+    def memory_bytes(self):
+        """Bytes held by the grain, pair and wall-contact arrays of this simulation."""
+        arrays = list(self.state.arrays().values()) + list(self.pairs) \
+            + list(self.wall_contacts) + [self.reference_positions, self.max_overlap]
+        return int(sum(a.nbytes for a in arrays))
+
     def contacts(self):
         """Touching grain pairs of the last force evaluation: (i, j, force on i (K, 3) [N])."""
         start, partners, force = self.pairs[0], self.pairs[1], self.pairs[8]
