@@ -60,9 +60,17 @@ def main():
 
     t, ek, fw = np.array(series).T
     fig, ax = plt.subplots(1, 3, figsize=(13, 4))
+    from matplotlib.collections import EllipseCollection
+
     p = state.positions
-    ax[0].scatter(p[:, 0] * 1e3, p[:, 2] * 1e3, s=4, c=p[:, 1], cmap="viridis")
-    ax[0].set(xlabel="x [mm]", ylabel="z [mm]", title="settled bed (side view)", aspect="equal")
+    cut = np.abs(p[:, 1] - 0.5 * side) < state.radii          # grains cut by y = side/2
+    half = np.sqrt(state.radii[cut] ** 2 - (p[cut, 1] - 0.5 * side) ** 2)
+    ax[0].add_collection(EllipseCollection(2e3 * half, 2e3 * half, 0, units="xy",
+                                           offsets=p[cut][:, [0, 2]] * 1e3,
+                                           offset_transform=ax[0].transData,
+                                           facecolors="tan", edgecolors="k", linewidths=0.3))
+    ax[0].set(xlim=(0, side * 1e3), ylim=(0, report["bed_height_m"] * 1.1e3), aspect="equal",
+              xlabel="x [mm]", ylabel="z [mm]", title="settled bed, section y = L/2")
     ax[1].semilogy(t, ek)
     ax[1].set(xlabel="t [s]", ylabel="kinetic energy [J]")
     ax[2].plot(t, fw / report["total_weight_N"])
