@@ -25,3 +25,26 @@ def test_jit_flags_only_in_jit_module():
         text = path.read_text()
         assert "fastmath" not in text, path
         assert "numba.njit" not in text and "@njit" not in text, path
+
+
+def test_changing_law_or_parameter_does_not_recompile():
+    """One compiled loop serves every law and parameter: the law ids and the pair table
+    are run-time data (DESIGN.md), so a second model adds no signature."""
+    import numpy as np
+
+    import graindyn as gd
+    from graindyn.core import loop
+
+    def run(model, material):
+        st = gd.State.create([[0, 0, 1e-3], [0, 0, 3.5e-3]], [1e-3, 1e-3], 2650.0)
+        sim = gd.Simulation(st, [material], model, walls=[gd.Plane((0, 0, 0), (0, 0, 1))])
+        sim.run(steps=50)
+        return np.isfinite(st.positions).all()
+
+    assert run(gd.ContactModel("hertz", "tsuji", "mindlin"), gd.Material(restitution=0.5))
+    before = len(loop.run_chunk.signatures)
+    assert run(gd.ContactModel("hooke", "linear", "cundall_strack"),
+               gd.Material(kn=1e4, kt=3e3, restitution=0.9, friction_sliding=0.3))
+    assert run(gd.ContactModel("hertz", "viscoelastic", "coulomb"),
+               gd.Material(youngs_modulus=5e7, gamma_n=1e4, friction_sliding=0.2))
+    assert len(loop.run_chunk.signatures) == before == 1
