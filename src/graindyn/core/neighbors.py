@@ -154,7 +154,7 @@ def _scan_grain(i, positions, radii, skin, cell, counts, cell_start, cell_items,
 def _count_pairs(positions, radii, skin, cell, counts, cell_start, cell_items,
                  periodic_flag, periodic_length, start):
     n = positions.shape[0]
-    empty = np.empty(0, np.int32)
+    empty = np.empty(0, np.uint32)
     for i in prange(n):
         start[i + 1] = _scan_grain(i, positions, radii, skin, cell, counts, cell_start,
                                    cell_items, periodic_flag, periodic_length, empty, 0)

@@ -93,34 +93,37 @@ class Simulation:
         self._allocate_walls(n // 4 + 16)
 
     # ------------------------------------------------------------------ storage
-    def _allocate_pairs(self, capacity, keep=0):
-        """(Re)allocate pair arrays with room for ``capacity`` pairs, keeping the list."""
+    def _allocate_pairs(self, capacity):
+        """(Re)allocate pair arrays with room for ``capacity`` pairs, keeping the list.
+
+        Grain indices loaded from these arrays are unsigned: numba then skips the
+        negative-index wraparound on every array access in the contact loops."""
         n, h = self.state.n, self.history_size
         old = getattr(self, "pairs", None)
         start = old[0] if old is not None else np.zeros(n + 1, np.int64)
-        partners = np.zeros(capacity, np.int32)
+        partners = np.zeros(capacity, np.uint32)
         history = np.zeros((capacity, h))
         if old is not None:
             m = int(old[0][n])
             partners[:m] = old[1][:m]
             history[:m] = old[2][:m]
         self.pairs = (start, partners, history, np.zeros(n + 1, np.int64),
-                      np.zeros(capacity, np.int32), np.zeros((capacity, h)),
-                      np.zeros(n + 1, np.int64), np.zeros(capacity, np.int32),
+                      np.zeros(capacity, np.uint32), np.zeros((capacity, h)),
+                      np.zeros(n + 1, np.int64), np.zeros(capacity, np.uint32),
                       np.zeros((capacity, 3)), np.zeros((capacity, 3)), np.zeros((capacity, 3)))
 
     def _allocate_walls(self, capacity):
         n, h, w = self.state.n, self.history_size, self.walls
         old = getattr(self, "wall_contacts", None)
         start = old[0] if old is not None else np.zeros(n + 1, np.int64)
-        ids = np.zeros(capacity, np.int32)
+        ids = np.zeros(capacity, np.uint32)
         history = np.zeros((capacity, h))
         if old is not None:
             m = int(old[0][n])
             ids[:m] = old[1][:m]
             history[:m] = old[2][:m]
         self.wall_contacts = (start, ids, history, np.zeros(n + 1, np.int64),
-                              np.zeros(capacity, np.int32), np.zeros((capacity, h)),
+                              np.zeros(capacity, np.uint32), np.zeros((capacity, h)),
                               np.zeros((capacity, 3)), np.zeros((capacity, 3)))
         self.reference_offset = w.offset.copy()
 
