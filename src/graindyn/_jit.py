@@ -10,8 +10,11 @@ raising, and fastmath stays off so that results are reproducible across machines
 
 Numba checks a cached kernel only against its own source file, not against the
 functions it inlines from other files, so the cache lives in a folder named by a hash
-of the whole package source: any edit starts a fresh cache and nothing stale is ever
-loaded.  ``GRAINDYN_CACHE_DIR`` moves the root (default ~/.cache/graindyn).
+of the engine source: any edit starts a fresh cache and nothing stale is ever loaded.
+The hash covers physics/, core/ (the kernels and every constant they read) and any
+other module that imports this one; pure-Python layers (config, output, CLI, run
+driver) are left out, so editing them keeps the cache.
+``GRAINDYN_CACHE_DIR`` moves the root (default ~/.cache/graindyn).
 """
 import hashlib
 import os
@@ -20,14 +23,18 @@ import pathlib
 import numba
 
 _SOURCE = pathlib.Path(__file__).parent
+ENGINE = ("physics", "core", "_jit.py")
 
 
 def source_digest():
-    """Hash of every .py file of the package (names and contents)."""
+    """Hash of every .py file of the package that may hold or feed compiled code."""
     h = hashlib.sha1()
     for path in sorted(_SOURCE.rglob("*.py")):
+        text = path.read_bytes()
+        if path.relative_to(_SOURCE).parts[0] not in ENGINE and b"_jit import" not in text:
+            continue
         h.update(str(path.relative_to(_SOURCE)).encode())
-        h.update(path.read_bytes())
+        h.update(text)
     return h.hexdigest()[:16]
 
 

@@ -17,6 +17,13 @@ from .triggers import Periodic
 from .walls import Walls
 
 
+_PAIR_ARRAYS = ("start", "partners", "history", "scratch_start", "scratch_partners",
+                "scratch_history", "reverse_start", "reverse_pairs", "force", "torque_i",
+                "torque_j")
+_WALL_CONTACT_ARRAYS = ("start", "ids", "history", "scratch_start", "scratch_ids",
+                        "scratch_history", "force", "torque")
+
+
 class SimulationError(RuntimeError):
     """A run stopped because the physics broke down (NaN, excessive overlap)."""
 
@@ -195,12 +202,18 @@ class Simulation:
             if nsteps == 0:
                 return loop.DONE, done
 
-    def run(self, steps=None, time=None, until=None, every=(), max_chunk=20000):
+    def run(self, steps=None, time=None, until=None, every=(), max_chunk=20000,
+            between=None):
         """Advance ``steps`` steps or ``time`` seconds, or until the compiled condition
         ``until`` (MaxSpeedBelow, EnergyRatioBelow) holds, whichever comes first.
 
         every : list of (Periodic, callback(sim)) run between chunks when due.
-        Returns "done" or "condition"; raises SimulationError on NaN or blow-up.
+        between : callback(sim) run after every chunk; returning True stops the run
+            ("stopped").  Chunks end on multiples of check_interval (or where a trigger
+            or the end falls), so the stop condition is tested at the same steps however
+            the run is cut: a run stopped and resumed gives the same numbers.
+        Returns "done", "condition" or "stopped"; raises SimulationError on NaN or
+        blow-up.
         """
         if steps is None and time is None:
             raise ValueError("run needs steps= or time= (an upper bound, also with until=)")
@@ -220,7 +233,9 @@ class Simulation:
                 n = min(end - self.step, max_chunk)
                 for period, _ in periods:
                     n = min(n, period - self.step % period)
-                status, _ = self._chunk(n)
+                check = int(self.counters[loop.CHECK_INTERVAL])
+                aligned = (self.step + n) // check * check - self.step
+                status, _ = self._chunk(aligned if aligned > 0 else n)
                 for period, cb in periods:
                     if self.step % period == 0:
                         cb(self)
@@ -236,9 +251,59 @@ class Simulation:
                         f"an overlap exceeded {self.clock[loop.OVERLAP_LIMIT]:.3g} of the "
                         f"smaller radius at step {self.step} (t = {self.time:.6g} s): grains "
                         "are too soft for the load or the time step is too large")
+                if between is not None and between(self):
+                    return "stopped"
         finally:
             self.counters[loop.COND_KIND] = loop.NO_CONDITION
         return "done"
+
+    # ------------------------------------------------------------------ snapshots
+    def snapshot(self):
+        """Every mutable array of the run, by name (copies): grains, contact lists with
+        their histories, walls, clock and counters.  ``restore`` of this dict into a
+        Simulation built with the same inputs continues the run bit for bit."""
+        arrays = {f"grains/{k}": v for k, v in self.state.arrays().items()}
+        for group, names, values in (("pairs", _PAIR_ARRAYS, self.pairs),
+                                     ("wall_contacts", _WALL_CONTACT_ARRAYS,
+                                      self.wall_contacts)):
+            arrays.update({f"{group}/{k}": v for k, v in zip(names, values)
+                           if not k.startswith("scratch_")})
+        w = self.walls
+        arrays.update({"walls/offset": w.offset, "walls/base": w.base,
+                       "walls/velocity": w.velocity, "walls/force": w.force,
+                       "loop/reference_positions": self.reference_positions,
+                       "loop/reference_offset": self.reference_offset,
+                       "loop/max_overlap": self.max_overlap, "loop/clock": self.clock,
+                       "loop/counters": self.counters})
+        return {k: np.array(v, copy=True) for k, v in arrays.items()}
+
+    def restore(self, arrays):
+        """Put a ``snapshot`` back (same grains, walls and model); KeyError or ValueError
+        naming the array if one is missing or of the wrong shape."""
+        def put(target, name):
+            value = np.asarray(arrays[name])
+            if value.shape != target.shape or value.dtype != target.dtype:
+                raise ValueError(f"snapshot array {name}: {value.dtype}{value.shape} does "
+                                 f"not fit {target.dtype}{target.shape}")
+            target[...] = value
+
+        for k, v in self.state.arrays().items():
+            put(v, f"grains/{k}")
+        def lists(group, names):  # scratch arrays are rebuilt empty, like their twins
+            return tuple(np.zeros_like(arrays[f"{group}/{k.removeprefix('scratch_')}"])
+                         if k.startswith("scratch_") else np.array(arrays[f"{group}/{k}"])
+                         for k in names)
+
+        self.pairs = lists("pairs", _PAIR_ARRAYS)
+        self.wall_contacts = lists("wall_contacts", _WALL_CONTACT_ARRAYS)
+        for k in ("offset", "base", "velocity", "force"):
+            put(getattr(self.walls, k), f"walls/{k}")
+        put(self.reference_positions, "loop/reference_positions")
+        self.reference_offset = np.array(arrays["loop/reference_offset"])
+        for k in ("max_overlap", "clock", "counters"):
+            put(getattr(self, k), f"loop/{k}")
+        self.state.time = self.time
+        self.state.step = self.step
 
     # ------------------------------------------------------------------ contacts
     def memory_bytes(self):

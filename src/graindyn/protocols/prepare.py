@@ -178,9 +178,14 @@ def settle(sim, criterion=None, max_time=5.0, bottom_wall=None, cross_section=No
     if not isinstance(criterion, (EnergyRatioBelow, MaxSpeedBelow)):
         raise TypeError("criterion must be EnergyRatioBelow or MaxSpeedBelow")
     status = sim.run(time=max_time, until=criterion, every=every)
+    return settle_report(sim, status == "condition", criterion, bottom_wall, cross_section)
+
+
+def settle_report(sim, reached, criterion, bottom_wall=None, cross_section=None):
+    """The report of ``settle`` for a sample whose settling run has ended."""
     s = sim.state
     up = 2 if s.dim == 3 else 1
-    report = {"reached": status == "condition", "criterion": repr(criterion),
+    report = {"reached": bool(reached), "criterion": repr(criterion),
               "time_s": sim.time, "steps": sim.step,
               "coordination_number": coordination_number(sim),
               "coordination_number_mechanical": coordination_number(sim, exclude_rattlers=True),

@@ -1,0 +1,4 @@
+"""python -m graindyn: the command line."""
+from .cli import main
+
+main()

@@ -1,0 +1,156 @@
+"""The graindyn command line: run, validate, info, plot.
+
+Exit codes: 0 success; 1 the simulation broke down (NaN, blow-up); 2 a bad config,
+run directory or checkpoint (one message, no traceback); 130/143 interrupted by
+SIGINT/SIGTERM after writing a checkpoint.
+"""
+import pathlib
+import sys
+from typing import Annotated, Optional
+
+import typer
+
+from . import __version__
+
+app = typer.Typer(add_completion=False, no_args_is_help=True,
+                  help="graindyn: granular dynamics simulator and virtual soil laboratory.")
+
+
+def _fail(message, code=2):
+    typer.echo(f"error: {message}", err=True)
+    raise typer.Exit(code)
+
+
+@app.command()
+def run(
+    config: Annotated[Optional[pathlib.Path], typer.Argument(
+        help="TOML config of the run (see examples/*.toml).")] = None,
+    out: Annotated[Optional[pathlib.Path], typer.Option(
+        "--out", "-o", help="Run directory to create [default: runs/<run.name>].")] = None,
+    threads: Annotated[Optional[int], typer.Option(
+        help="CPU threads (overrides run.threads; 0 = all cores).", min=0)] = None,
+    backend: Annotated[Optional[str], typer.Option(
+        help="Compute backend, cpu or gpu (overrides run.backend).")] = None,
+    resume: Annotated[Optional[pathlib.Path], typer.Option(
+        help="Continue the run in this run directory from its last checkpoint.")] = None,
+    progress: Annotated[bool, typer.Option(
+        help="Show a progress bar (only on a terminal).")] = True,
+):
+    """Run a config into a run directory, or --resume an interrupted run.
+
+    The run directory gets the resolved config, meta data (version, commit, seed,
+    machine, threads), run.log, series.csv, results.json, figures/, vtk/ and
+    checkpoints/.  SIGINT or SIGTERM writes a checkpoint and stops (exit 130/143).
+    """
+    from .config import ConfigError, load
+    from .core.simulation import SimulationError
+    from .output.checkpoint import CheckpointError
+    from .runner import RunInterrupted, execute
+    from .runner import resume as resume_run
+
+    if (config is None) == (resume is None):
+        _fail("give either CONFIG or --resume RUNDIR (not both)")
+    try:
+        if resume is not None:
+            if backend not in (None, "cpu"):
+                _fail("--backend: a resumed run keeps the backend it started with")
+            results = resume_run(resume, show_progress=progress, echo=typer.echo,
+                                 threads=threads)
+        else:
+            cfg = load(config)
+            if threads is not None:
+                cfg.run.threads = threads
+            if backend is not None:
+                if backend not in ("cpu", "gpu"):
+                    _fail(f"--backend = {backend!r}: choose cpu or gpu")
+                cfg.run.backend = backend
+            results = execute(cfg, out or pathlib.Path("runs") / cfg.run.name,
+                              show_progress=progress, echo=typer.echo)
+    except (ConfigError, CheckpointError, FileExistsError, FileNotFoundError) as err:
+        _fail(err)
+    except SimulationError as err:
+        _fail(err, 1)
+    except RunInterrupted as err:
+        _fail(err, 128 + err.signum)
+    summary = {k: v for k, v in results.items() if isinstance(v, (int, float, bool))}
+    typer.echo("\n".join(f"  {k}: {v:.6g}" if isinstance(v, float) else f"  {k}: {v}"
+                         for k, v in summary.items()))
+
+
+@app.command()
+def validate(config: Annotated[pathlib.Path, typer.Argument(help="TOML config to check.")]):
+    """Check a config without simulating: exit 0 when it can run, 2 otherwise."""
+    from .config import ConfigError, load
+    from .runner import check
+
+    try:
+        cfg = load(config)
+        report = check(cfg)
+    except ConfigError as err:
+        _fail(err)
+    c = cfg.contact
+    typer.echo(f"{config}: ok\n  {cfg.grains.count} grains in {cfg.run.dim}D, protocol "
+               f"{cfg.protocol.kind}\n  contact: {c.normal} + {c.damping} + {c.tangential} "
+               f"+ rolling {c.rolling} + twisting {c.twisting}\n  {report['criterion']} "
+               f"{report['critical_time_s']:.4g} s, suggested dt "
+               f"{report['suggested_dt_s']:.4g} s"
+               + (f", dt {cfg.integrator.dt:.4g} s = {report['fraction']:.3f} of it"
+                  if cfg.integrator.dt else ""))
+
+
+@app.command()
+def info():
+    """Version, backends found (CPU threads, GPU), compile cache, laws and integrators."""
+    import warnings
+
+    import numba
+    import numpy as np
+
+    from . import _jit
+    from .core.integrators import NAMES
+    from .physics import registry
+
+    gpu = "none found"
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            from numba import cuda
+            if cuda.is_available():
+                gpu = ", ".join(d.name.decode() if isinstance(d.name, bytes) else str(d.name)
+                                for d in cuda.list_devices())
+    except Exception as err:  # any failure to probe means no usable GPU
+        gpu = f"none ({type(err).__name__})"
+    cache = _jit.CACHE_DIR
+    size = sum(p.stat().st_size for p in cache.rglob("*") if p.is_file()) \
+        if cache.exists() else 0
+    lines = [f"graindyn {__version__}",
+             f"python {sys.version.split()[0]}, numpy {np.__version__}, numba {numba.__version__}",
+             f"cpu: {numba.config.NUMBA_NUM_THREADS} threads "
+             f"(threading layer {numba.config.THREADING_LAYER})",
+             f"gpu: {gpu}",
+             f"compile cache: {cache} ({size / 1e6:.1f} MB"
+             + (")" if cache.exists() else ", empty: the first run compiles, ~1-2 min)")]
+    for mode in registry.MODES:
+        lines.append(f"{mode} laws: " + ", ".join(law.name for law in registry.laws(mode)))
+    lines.append("integrators: " + ", ".join(NAMES))
+    typer.echo("\n".join(lines))
+
+
+@app.command()
+def plot(rundir: Annotated[pathlib.Path, typer.Argument(help="A finished run directory.")]):
+    """Redraw the figures of a finished run from its saved files."""
+    from .config import ConfigError, load
+    from .output.rundir import RunDirectory
+    from .runner import PROTOCOLS, draw
+
+    try:
+        cfg = load(rundir / "config.toml")
+        paths = draw(RunDirectory(rundir), PROTOCOLS[cfg.protocol.kind](cfg))
+    except (ConfigError, FileNotFoundError) as err:
+        _fail(err)
+    typer.echo("\n".join(str(p) for p in paths))
+
+
+def main():
+    """Console entry point."""
+    app()

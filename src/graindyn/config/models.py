@@ -1,0 +1,289 @@
+"""The run configuration: one pydantic model per TOML section (SI units throughout).
+
+Every field states its unit and allowed range in its description and enforces the range
+with bounds; unknown keys are rejected; cross-field rules are checked in the
+``model_validator``s.  A script builds the same ``Config`` from a dict, so a script and
+a TOML file describe the same run.
+"""
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from ..core import integrators
+from ..physics import registry
+
+# random sequential insertion jams at these solid fractions (Torquato, Random
+# Heterogeneous Materials, 2002): no random insertion can reach them
+RSA_JAMMING = {2: 0.547, 3: 0.3841}
+
+
+class Section(BaseModel):
+    """A config section: unknown keys are errors, assignments are validated."""
+
+    model_config = ConfigDict(extra="forbid", validate_assignment=True)
+
+
+def _f(default=..., doc="", **bounds):
+    """A field with its unit and range written into its description."""
+    return Field(default, description=doc, **bounds)
+
+
+class RunSection(Section):
+    name: str = _f("run", "name of the run (used in file names and figure titles)")
+    seed: int = _f(1, "random seed [-] of everything random (insertion, velocities); >= 0",
+                   ge=0)
+    dim: Literal[2, 3] = _f(3, "dimension: 3 (spheres) or 2 (disks in the x-y plane)")
+    backend: Literal["cpu", "gpu"] = _f("cpu", "compute backend: cpu or gpu")
+    threads: int = _f(0, "CPU threads [-], 0 = all cores; 0..1024", ge=0, le=1024)
+    gravity: tuple[float, float, float] = _f(
+        (0.0, 0.0, -9.81), "gravity [m/s^2]; in 2D the z component must be 0")
+
+
+class DiameterSection(Section):
+    distribution: Literal["uniform", "normal", "lognormal"] = _f(
+        "uniform", "diameter distribution: uniform in [min, max] (Oquendo, Perez), normal "
+        "or lognormal (mean, std of the diameter)")
+    min: float | None = _f(None, "smallest diameter [m] (uniform); (0, 1]", gt=0, le=1)
+    max: float | None = _f(None, "largest diameter [m] (uniform); (0, 1]", gt=0, le=1)
+    mean: float | None = _f(None, "mean diameter [m] (normal, lognormal); (0, 1]", gt=0, le=1)
+    std: float | None = _f(None, "standard deviation of the diameter [m]; [0, 1]", ge=0, le=1)
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        if self.distribution == "uniform":
+            if self.min is None or self.max is None:
+                raise ValueError("a uniform distribution needs min and max [m]")
+            if self.min > self.max:
+                raise ValueError(f"min = {self.min} must be <= max = {self.max} [m]")
+        elif self.mean is None or self.std is None:
+            raise ValueError(f"a {self.distribution} distribution needs mean and std [m]")
+        return self
+
+    def as_kwargs(self):
+        """Keyword arguments of state.sample_radii."""
+        if self.distribution == "uniform":
+            return {"d_min": self.min, "d_max": self.max}
+        return {"mean": self.mean, "std": self.std}
+
+    def smallest(self):
+        """A lower bound of the diameters drawn [m] (for the time-step check)."""
+        if self.distribution == "uniform":
+            return self.min
+        return max(self.mean - 4 * self.std, 0.05 * self.mean)
+
+
+class GrainsSection(Section):
+    count: int = _f(..., "number of grains [-]; 1..1e8", ge=1, le=100_000_000)
+    diameter: DiameterSection = _f(..., "grain diameters")
+    material: str = _f(..., "name of the grain material (one of [[materials]])")
+
+
+class MaterialSection(Section):
+    """Mirrors core.species.Material field by field (a test keeps the two in step)."""
+
+    name: str = _f(..., "material name, referenced by grains and walls")
+    density: float = _f(2650.0, "density [kg/m^3] (2D: areal [kg/m^2]); (0, 1e5]", gt=0,
+                        le=1e5)
+    youngs_modulus: float = _f(1e8, "Young's modulus E [Pa]; (0, 1e13]", gt=0, le=1e13)
+    poisson_ratio: float = _f(0.3, "Poisson ratio nu [-]; (-1, 0.5)", gt=-1, lt=0.5)
+    restitution: float | None = _f(None, "normal restitution coefficient [-] setting the "
+                                   "damping of the chosen law; (0, 1]", gt=0, le=1)
+    damping_constant: float = _f(0.0, "linear dashpot constant Gamma [kg/s]; >= 0", ge=0)
+    gamma_n: float = _f(0.0, "viscoelastic Hertz damping gamma_n [1/(s m^0.5)] (Oquendo "
+                        "Eq. 1); >= 0", ge=0)
+    kn: float = _f(0.0, "linear normal stiffness [N/m]; >= 0", ge=0)
+    kt: float = _f(0.0, "linear tangential stiffness [N/m]; >= 0", ge=0)
+    friction_sliding: float = _f(0.5, "sliding friction coefficient mu_k [-]; [0, 10]",
+                                 ge=0, le=10)
+    friction_static: float = _f(0.5, "static friction coefficient mu_s [-]; [0, 10]",
+                                ge=0, le=10)
+    friction_rolling: float = _f(0.0, "rolling friction coefficient [-]; [0, 10]", ge=0,
+                                 le=10)
+    tangential_damping: float = _f(0.0, "tangential/normal dashpot ratio [-]; [0, 1e6]",
+                                   ge=0, le=1e6)
+
+
+class PairOverride(Section):
+    materials: tuple[str, str] = _f(..., "the two material names of the pair")
+    values: dict[str, float] = _f(..., "pair-table columns and their values (SI)")
+
+    @field_validator("values")
+    @classmethod
+    def _columns(cls, values):
+        unknown = sorted(set(values) - set(registry.COL))
+        if unknown:
+            raise ValueError(f"unknown pair columns {unknown}; columns are "
+                             f"{sorted(registry.COL)}")
+        return values
+
+
+class ContactSection(Section):
+    normal: str = _f("hertz", "normal elastic law (registry name)")
+    damping: str = _f("tsuji", "normal damping law (registry name)")
+    tangential: str = _f("mindlin", "tangential law (registry name)")
+    rolling: str = _f("none", "rolling resistance law (registry name)")
+    twisting: str = _f("none", "twisting resistance law (registry name)")
+    limit_damping: bool = _f(True, "keep the normal force repulsive (Perez Eq. 14, 17)")
+    overrides: list[PairOverride] = _f([], "per-pair column overrides")
+
+    @model_validator(mode="after")
+    def _laws_exist(self):
+        for mode in registry.MODES:
+            registry.law_id(mode, getattr(self, mode))  # ValueError names the choices
+        return self
+
+
+class MotionSection(Section):
+    kind: Literal["fixed", "velocity", "sinusoid"] = _f("fixed", "prescribed wall motion")
+    velocity: tuple[float, float, float] = _f((0.0, 0.0, 0.0), "velocity [m/s] (velocity)")
+    direction: tuple[float, float, float] = _f((0.0, 0.0, 1.0),
+                                               "direction of a sinusoid [-]")
+    amplitude: float = _f(0.0, "sinusoid amplitude [m]; >= 0", ge=0)
+    frequency: float = _f(1.0, "sinusoid frequency [Hz]; > 0", gt=0)
+    phase: float = _f(0.0, "sinusoid phase [rad]")
+    start: float = _f(0.0, "time the motion starts [s]; >= 0", ge=0)
+
+
+class PlaneSection(Section):
+    name: str = _f(..., "wall name (used in the outputs)")
+    point: tuple[float, float, float] = _f(..., "a point of the plane [m]")
+    normal: tuple[float, float, float] = _f(..., "normal pointing into the grains [-]")
+    material: str | None = _f(None, "wall material; default: walls.material")
+    area: float | None = _f(None, "area [m^2] (2D: length [m]) for the stress; > 0", gt=0)
+    motion: MotionSection = _f(MotionSection(), "prescribed motion")
+
+
+class BoxContainer(Section):
+    kind: Literal["box"] = "box"
+    lo: list[float] = _f(..., "lower corner [m] (dim components)")
+    hi: list[float] = _f(..., "upper corner [m] (dim components)")
+    open_top: bool = _f(True, "leave out the face at hi along the last axis")
+
+
+class CylinderContainer(Section):
+    kind: Literal["cylinder"] = "cylinder"
+    radius: float = _f(..., "inner radius [m]; (0, 100]", gt=0, le=100)
+    height: float = _f(..., "height [m] of the cylinder above its bottom; (0, 1000]", gt=0,
+                       le=1000)
+    center: tuple[float, float] = _f((0.0, 0.0), "axis position (x, y) [m]; the axis is z")
+
+
+class WallsSection(Section):
+    material: str = _f(..., "default wall material (one of [[materials]])")
+    container: BoxContainer | CylinderContainer | None = _f(
+        None, "the container: a box or a vertical cylinder with a bottom at z = 0",
+        discriminator="kind")
+    planes: list[PlaneSection] = _f([], "additional planes")
+    periodic: list[tuple[int, float, float]] = _f(
+        [], "periodic directions as (axis 0..2, lo [m], hi [m])")
+
+
+class IntegratorSection(Section):
+    name: str = _f("velocity_verlet", "integrator (see graindyn info)")
+    dt: float | None = _f(None, "time step [s]; default: the suggested step; (0, 1]", gt=0,
+                          le=1)
+    allow_large_dt: bool = _f(False, "accept a step above the safe fraction of the contact "
+                              "time")
+    skin: float | None = _f(None, "neighbour-list skin [m]; default 0.2 mean radius", gt=0)
+    check_interval: int = _f(100, "steps between NaN/overlap/stop checks [-]; 1..1e6",
+                             ge=1, le=1_000_000)
+    overlap_limit: float = _f(0.2, "stop when an overlap exceeds this fraction of the "
+                              "smaller radius [-]; (0, 1]", gt=0, le=1)
+
+    @field_validator("name")
+    @classmethod
+    def _known(cls, name):
+        integrators.integrator_id(name)
+        return name
+
+
+class DepositionProtocol(Section):
+    """Insert grains in the container and settle them under gravity."""
+
+    kind: Literal["deposition"] = "deposition"
+    insertion: Literal["random", "lattice"] = _f(
+        "random", "random non-overlapping insertion, or a loose lattice with random "
+        "velocities (Perez)")
+    packing_fraction: float = _f(0.2, "solid fraction of the insertion region [-] (random "
+                                 "insertion); (0, RSA jamming: 0.384 in 3D, 0.547 in 2D)",
+                                 gt=0, lt=0.547)
+    lattice_gap: float = _f(0.05, "gap between lattice sites [fraction of d_max]; [0, 10]",
+                            ge=0, le=10)
+    lattice_speed: float = _f(0.0, "random initial speed on the lattice [m/s]; >= 0", ge=0)
+    criterion: Literal["energy_ratio", "max_speed"] = _f(
+        "energy_ratio", "equilibrium: E_kin/E_pot <= threshold (Karrech et al.) or the "
+        "largest speed below threshold [m/s]")
+    threshold: float = _f(1e-6, "value of the equilibrium criterion; > 0", gt=0)
+    max_time: float = _f(1.0, "longest settling time [s] of simulated time; (0, 1e4]",
+                         gt=0, le=1e4)
+
+
+class OutputSection(Section):
+    series_every: float = _f(1e-3, "time-series interval [s] of simulated time; > 0", gt=0)
+    vtk_every: float | None = _f(None, "VTK snapshot interval [s] of simulated time "
+                                 "(None: first and last state only); > 0", gt=0)
+    vtk_contacts: bool = _f(False, "also write the contact network (lines, normal force)")
+    checkpoint_every_steps: int | None = _f(200_000, "checkpoint interval [steps]; >= 1",
+                                            ge=1)
+    checkpoint_every_seconds: float | None = _f(
+        600.0, "checkpoint interval [s] of wall-clock time; > 0", gt=0)
+    figures: bool = _f(True, "draw the figures (PNG)")
+
+
+class Config(Section):
+    """A whole run."""
+
+    run: RunSection = _f(RunSection(), "run identity, dimension, backend, gravity")
+    grains: GrainsSection
+    materials: list[MaterialSection] = _f(..., "materials of grains and walls",
+                                          min_length=1)
+    contact: ContactSection = _f(ContactSection(), "contact law, one per mode")
+    walls: WallsSection
+    integrator: IntegratorSection = _f(IntegratorSection(), "time integration")
+    protocol: DepositionProtocol = _f(DepositionProtocol(), "what the run does")
+    output: OutputSection = _f(OutputSection(), "what the run writes")
+
+    @model_validator(mode="after")
+    def _cross_checks(self):
+        names = [m.name for m in self.materials]
+        if len(set(names)) != len(names):
+            raise ValueError(f"materials: names must be unique, got {names}")
+        used = [("grains.material", self.grains.material),
+                ("walls.material", self.walls.material)]
+        used += [(f"walls.planes.{k}.material", p.material)
+                 for k, p in enumerate(self.walls.planes) if p.material is not None]
+        used += [(f"contact.overrides.{k}.materials", m)
+                 for k, o in enumerate(self.contact.overrides) for m in o.materials]
+        for where, name in used:
+            if name not in names:
+                raise ValueError(f"{where} = {name!r} is not a material; materials are "
+                                 f"{names}")
+        dim = self.run.dim
+        if dim == 2 and self.run.gravity[2] != 0:
+            raise ValueError(f"run.gravity = {self.run.gravity}: the z component must be 0 "
+                             "in 2D")
+        box = self.walls.container
+        if isinstance(box, BoxContainer):
+            if len(box.lo) != dim or len(box.hi) != dim or any(
+                    h <= lo for lo, h in zip(box.lo, box.hi)):
+                raise ValueError(f"walls.container: a {dim}D box needs lo < hi with {dim} "
+                                 f"components, got lo = {box.lo}, hi = {box.hi}")
+        if isinstance(box, CylinderContainer) and dim == 2:
+            raise ValueError("walls.container: a cylinder needs run.dim = 3")
+        if box is None:
+            raise ValueError("walls.container: the deposition protocol needs a container "
+                             "(box or cylinder)")
+        phi = self.protocol.packing_fraction
+        if self.protocol.insertion == "random" and phi >= RSA_JAMMING[dim]:
+            raise ValueError(f"protocol.packing_fraction = {phi}: random insertion cannot "
+                             f"reach the RSA jamming fraction {RSA_JAMMING[dim]} in {dim}D; "
+                             "use a smaller value (0.2 is quick)")
+        for axis, lo, hi in self.walls.periodic:
+            if axis not in range(dim) or not hi > lo:
+                raise ValueError(f"walls.periodic: ({axis}, {lo}, {hi}) needs axis in "
+                                 f"0..{dim - 1} and hi > lo [m]")
+        return self
+
+    def material_index(self, name):
+        """Position of material ``name`` in ``materials``."""
+        return [m.name for m in self.materials].index(name)

@@ -1,0 +1,1 @@
+"""What a run writes: run directory, time series, VTK snapshots, checkpoints, progress."""

@@ -1,0 +1,137 @@
+"""The run directory: everything a run leaves behind, in one folder.
+
+    config.toml      the resolved config (every default filled in)
+    meta.json        graindyn version, git commit, seed, machine, threads, backend, start
+    run.log          what happened, with times
+    series.csv       time series, units in the column names
+    results.json     the scalar results
+    figures/*.png    the figures (``graindyn plot`` redraws them from the files above)
+    vtk/*.vtu, *.pvd snapshots for ParaView / OVITO
+    checkpoints/     checkpoint.h5 (latest) and checkpoint.prev.h5
+"""
+import csv
+import datetime
+import json
+import logging
+import os
+import pathlib
+import platform
+import subprocess
+import sys
+
+import numba
+import numpy as np
+
+from .. import __version__
+
+
+def git_commit():
+    """The commit of the graindyn source tree, if it is a git checkout (else None)."""
+    here = pathlib.Path(__file__).resolve().parents[3]
+    try:
+        out = subprocess.run(["git", "-C", str(here), "rev-parse", "HEAD"],
+                             capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return out.stdout.strip() if out.returncode == 0 else None
+
+
+def machine():
+    """Host, CPU, cores and software versions."""
+    return {"host": platform.node(), "cpu": platform.processor() or platform.machine(),
+            "cores": os.cpu_count(), "python": sys.version.split()[0],
+            "numpy": np.__version__, "numba": numba.__version__,
+            "platform": platform.platform()}
+
+
+class RunDirectory:
+    """A run's folder; ``create`` starts a new one, the constructor opens an existing one."""
+
+    def __init__(self, path):
+        self.path = pathlib.Path(path)
+        self.figures = self.path / "figures"
+        self.vtk = self.path / "vtk"
+        self.checkpoints = self.path / "checkpoints"
+        self.logger = logging.getLogger(f"graindyn.run.{self.path.resolve()}")
+        if not self.logger.handlers and self.path.exists():
+            handler = logging.FileHandler(self.path / "run.log")
+            handler.setFormatter(logging.Formatter("%(asctime)s %(message)s"))
+            self.logger.addHandler(handler)
+            self.logger.setLevel(logging.INFO)
+            self.logger.propagate = False
+
+    @classmethod
+    def create(cls, path, config_toml, meta):
+        """A new run directory; FileExistsError if ``path`` already holds a run."""
+        path = pathlib.Path(path)
+        if (path / "config.toml").exists():
+            raise FileExistsError(f"{path} already holds a run: resume it with "
+                                  f"'graindyn run --resume {path}' or choose another --out")
+        path.mkdir(parents=True, exist_ok=True)
+        (path / "config.toml").write_text(config_toml)
+        meta = {"version": __version__, "git_commit": git_commit(), "machine": machine(),
+                "started": datetime.datetime.now().isoformat(timespec="seconds"), **meta}
+        (path / "meta.json").write_text(json.dumps(meta, indent=1))
+        return cls(path)
+
+    def log(self, message):
+        """Append one line to run.log."""
+        self.logger.info(message)
+
+    def close(self):
+        """Release the log file."""
+        for handler in list(self.logger.handlers):
+            handler.close()
+            self.logger.removeHandler(handler)
+
+    def meta(self):
+        """The meta.json of the run."""
+        return json.loads((self.path / "meta.json").read_text())
+
+    def write_results(self, results):
+        """results.json (scalars and small lists)."""
+        (self.path / "results.json").write_text(json.dumps(results, indent=1, default=float))
+
+    def results(self):
+        """The results.json of a finished run."""
+        path = self.path / "results.json"
+        if not path.exists():
+            raise FileNotFoundError(f"{path}: the run has not finished (no results yet)")
+        return json.loads(path.read_text())
+
+
+class Series:
+    """A CSV time series with units in the column names ("time [s]"), written row by row
+    and flushed, so an interrupted run keeps what it wrote."""
+
+    def __init__(self, path):
+        self.path = pathlib.Path(path)
+        self.columns = None
+
+    def append(self, row: dict):
+        """Add a row (column name with unit -> value); the first row fixes the columns."""
+        new = not self.path.exists()
+        if self.columns is None:
+            self.columns = list(row) if new else self.path.open().readline().strip().split(",")
+        with self.path.open("a", newline="") as f:
+            writer = csv.writer(f)
+            if new:
+                writer.writerow(self.columns)
+            writer.writerow([repr(float(row[c])) for c in self.columns])
+
+    def truncate(self, step):
+        """Drop rows after ``step`` (column "step [-]"): used when resuming."""
+        if not self.path.exists():
+            return
+        with self.path.open(newline="") as f:
+            rows = list(csv.reader(f))
+        k = rows[0].index("step [-]")
+        keep = [rows[0]] + [r for r in rows[1:] if float(r[k]) <= step]
+        with self.path.open("w", newline="") as f:
+            csv.writer(f).writerows(keep)
+
+    def read(self):
+        """The series as {column: array}."""
+        data = np.genfromtxt(self.path, delimiter=",", names=None, skip_header=1, ndmin=2)
+        header = self.path.open().readline().strip().split(",")
+        return {c: data[:, k] for k, c in enumerate(header)}
