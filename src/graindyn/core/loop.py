@@ -6,8 +6,10 @@ One step (the order is fixed here and nowhere else):
      anything has changed, so the caller grows the arrays and calls again;
   2. for each integrator stage: drift/predict, move prescribed walls, contact forces
      (pairs, then walls), then one pass over grains that gathers their contact forces,
-     corrects the velocities and bounds the displacement for the next step's check;
-  3. time += dt, step += 1;
+     corrects the velocities and bounds the displacement for the next step's check
+     (integrators/passes.py; the integrator's own history is ``integrator_history``);
+  3. time += dt, step += 1, and one more step of integrator history (HISTORY_STEPS,
+     0 until the first step: multi-step schemes then use their start-up formulas);
   4. every ``check_interval`` steps: NaN, excessive overlap, and the stop condition.
 Dissipated energies and the work of moving walls are accumulated in ``clock``.
 """
@@ -28,7 +30,8 @@ TIME, DT, SKIN, GX, GY, GZ, COND_VALUE, OVERLAP_LIMIT, DISS_N, DISS_T, WALL_WORK
     range(12)
 # counters (int64) slots
 STEP, DIM, INTEGRATOR, REBUILDS, FORCE_REBUILD, CHECK_INTERVAL, COND_KIND, PRIMED, \
-    NEED_PAIRS, NEED_WALLS = range(10)
+    NEED_PAIRS, NEED_WALLS, HISTORY_STEPS = range(11)
+NCOUNTERS = 11
 # compiled stop conditions
 NO_CONDITION, MAX_SPEED_BELOW, ENERGY_RATIO_BELOW = 0, 1, 2
 
@@ -135,7 +138,7 @@ def _checks(grains, counters, clock):
 
 @kernel
 def _after(integrator, stage, dt, counters, gravity, grains, pairs, walls, periodic,
-           block_scratch):
+           integrator_history, block_scratch):
     """integrators.after_force with the arrays it needs taken out of the bundles."""
     (positions, velocities, angular_velocities, orientations, forces, torques, accelerations,
      angular_accelerations, radii, masses, inertias, materials, fixed, reference_positions,
@@ -143,17 +146,19 @@ def _after(integrator, stage, dt, counters, gravity, grains, pairs, walls, perio
     (kind, geometry, motion_kind, motion, base, offset, velocity, material, force,
      reference_offset, wall_start, wall_ids, wall_history, scratch_wall_start,
      scratch_wall_ids, scratch_wall_history, contact_force, contact_torque) = walls
-    return after_force(integrator, stage, dt, counters[DIM], gravity, pairs, wall_start,
-                       contact_force, contact_torque, forces, torques, masses, inertias,
-                       positions,
-                       reference_positions, velocities, angular_velocities, accelerations,
-                       angular_accelerations, fixed, periodic[0], periodic[2], block_scratch)
+    return after_force(integrator, stage, dt, counters[HISTORY_STEPS] > 0, counters[DIM],
+                       gravity, pairs, wall_start, contact_force, contact_torque, forces,
+                       torques, masses, inertias, positions, reference_positions, velocities,
+                       angular_velocities, orientations, accelerations, angular_accelerations,
+                       fixed, periodic[0], periodic[2], integrator_history, block_scratch)
 
 
 @kernel
-def run_chunk(model, params, grains, pairs, walls, periodic, clock, counters, block_scratch,
-              nsteps):
-    """Advance up to ``nsteps`` steps; returns (status, steps done)."""
+def run_chunk(model, params, grains, pairs, walls, periodic, clock, counters,
+              integrator_history, block_scratch, nsteps):
+    """Advance up to ``nsteps`` steps; returns (status, steps done).
+    integrator_history : (slots, N, 3) the integrator's own per-grain history
+    (integrators/ids.py)."""
     (positions, velocities, angular_velocities, orientations, forces, torques, accelerations,
      angular_accelerations, radii, masses, inertias, materials, fixed, reference_positions,
      max_overlap) = grains
@@ -196,11 +201,12 @@ def run_chunk(model, params, grains, pairs, walls, periodic, clock, counters, bl
         if counters[PRIMED] == 0:
             evaluate_forces(model, params, grains, pairs, walls, periodic, gravity, 0.0)
             clock[MOVE] = _after(integrator, 0, 0.0, counters, gravity, grains, pairs, walls,
-                                 periodic, block_scratch)
+                                 periodic, integrator_history, block_scratch)
             counters[PRIMED] = 1
         for stage in range(STAGES[integrator]):
-            before_force(integrator, stage, dt, positions, velocities, angular_velocities,
-                         orientations, accelerations, angular_accelerations, fixed)
+            before_force(integrator, stage, dt, counters[HISTORY_STEPS] > 0, positions,
+                         velocities, angular_velocities, orientations, accelerations,
+                         angular_accelerations, fixed, integrator_history)
             if stage == 0:
                 walls_advance(motion_kind, motion, base, offset, velocity, clock[TIME], dt)
             dn, dtan, power = evaluate_forces(model, params, grains, pairs, walls, periodic,
@@ -209,9 +215,10 @@ def run_chunk(model, params, grains, pairs, walls, periodic, clock, counters, bl
             clock[DISS_T] += dtan
             clock[WALL_WORK] += power * dt
             clock[MOVE] = _after(integrator, stage, dt, counters, gravity, grains, pairs,
-                                 walls, periodic, block_scratch)
+                                 walls, periodic, integrator_history, block_scratch)
         clock[TIME] += dt
         counters[STEP] += 1
+        counters[HISTORY_STEPS] += 1
         if counters[STEP] % counters[CHECK_INTERVAL] == 0 or s == nsteps - 1:
             status = _checks(grains, counters, clock)
             if status != DONE:

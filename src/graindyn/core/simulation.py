@@ -10,7 +10,7 @@ import math
 import numpy as np
 
 from . import loop
-from .integrators import integrator_id
+from .integrators import SCHEMES, SLOTS, history_names, integrator_id
 from .species import ContactModel, Material
 from .timestep import time_step_report
 from .triggers import Periodic
@@ -37,6 +37,18 @@ class Simulation:
     the mean diameter);  allow_large_dt: accept a step above the safe fraction.
     overlap_limit : stop when some overlap exceeds this fraction of the smaller radius.
     check_interval : steps between NaN/overlap/stop-condition checks.
+    integrator : one of integrators.NAMES (integrators/ids.py lists each with its equation).
+
+    Everything a run needs to continue exactly:
+      state arrays (State.arrays()), ``integrator_state`` (the integrator's per-grain
+      history by name, e.g. previous_accelerations for beeman, jerks/snaps/crackles
+      for gear6: views into one (slots, N, 3) array, translational then angular_),
+      ``clock`` (float64: time, dt, energies...) and ``counters`` (int64: step,
+      integrator history length...), the neighbour and wall-contact lists with their
+      contact histories, and the wall arrays.  ``snapshot()`` copies all of them into
+      one dict of numpy arrays and ``restore(dict)`` puts them back into a Simulation
+      built with the same arguments; the continued run is then bitwise identical to an
+      uninterrupted one (same thread count).
     """
 
     def __init__(self, state, materials, model=None, walls=(), periodic=(),
@@ -83,7 +95,7 @@ class Simulation:
         self.clock = loop.new_clock(dt, skin, gravity)
         self.clock[loop.TIME] = state.time
         self.clock[loop.OVERLAP_LIMIT] = overlap_limit
-        self.counters = np.zeros(10, np.int64)
+        self.counters = np.zeros(loop.NCOUNTERS, np.int64)
         self.counters[loop.STEP] = state.step
         self.counters[loop.DIM] = state.dim
         self.counters[loop.INTEGRATOR] = integrator_id(integrator)
@@ -98,6 +110,7 @@ class Simulation:
         # start small: the first build grows the lists to 1.3 x what it needs
         self._allocate_pairs(2 * n + 64)
         self._allocate_walls(n // 4 + 16)
+        self._allocate_integrator()
 
     # ------------------------------------------------------------------ storage
     def _allocate_pairs(self, capacity):
@@ -133,6 +146,32 @@ class Simulation:
                               np.zeros(capacity, np.uint32), np.zeros((capacity, h)),
                               np.zeros((capacity, 3)), np.zeros((capacity, 3)))
         self.reference_offset = w.offset.copy()
+
+    def _allocate_integrator(self):
+        """The integrator's per-grain history, zero: ``integrator_history`` (slots, N, 3),
+        exposed by slot name in ``integrator_state`` (views, so restore writes through)."""
+        k = integrator_id(self.integrator)
+        self.integrator_history = np.zeros((2 * SLOTS[k], self.state.n, 3))
+        self.integrator_state = dict(zip(history_names(self.integrator),
+                                         self.integrator_history))
+        self.counters[loop.HISTORY_STEPS] = 0
+
+    def _start_derivatives(self, steps=8):
+        """Exact start-up of the Gear schemes (integrators/gear.py): integrate ``steps``
+        steps forward and as many back to the start, ``start_sweeps`` times, keeping the
+        higher derivatives the corrector builds up and putting back everything else."""
+        sweeps = SCHEMES[integrator_id(self.integrator)].start_sweeps
+        if sweeps == 0:
+            return
+        saved = self.snapshot()
+        dt = self.clock[loop.DT]
+        for _ in range(sweeps):
+            for sign in (1.0, -1.0):
+                self.clock[loop.DT] = sign * dt
+                self._chunk(steps)
+            derivatives = self.integrator_history.copy()
+            self.restore(saved)
+            self.integrator_history[...] = derivatives
 
     def _grains(self):
         s = self.state
@@ -187,7 +226,8 @@ class Simulation:
         while True:
             status, done = loop.run_chunk(self.model_ids, self.params, self._grains(), self.pairs,
                                           self._walls(), self._periodic(), self.clock,
-                                          self.counters, self.block_scratch, nsteps)
+                                          self.counters, self.integrator_history,
+                                          self.block_scratch, nsteps)
             self.state.time = self.time
             self.state.step = self.step
             if status != loop.GROW:
@@ -228,6 +268,8 @@ class Simulation:
             if not isinstance(trigger, Periodic):
                 raise TypeError("every= takes (Periodic, callback) pairs")
         end = self.step + steps
+        if self.counters[loop.HISTORY_STEPS] == 0 and steps > 0:
+            self._start_derivatives()
         try:
             while self.step < end:
                 n = min(end - self.step, max_chunk)
@@ -329,3 +371,42 @@ class Simulation:
         owner = np.repeat(np.arange(n), np.diff(start))
         touching = np.any(force[:m] != 0.0, axis=1)
         return owner[touching], ids[:m][touching].astype(np.int64), force[:m][touching]
+
+    # ------------------------------------------------------------------ snapshots
+    def snapshot(self):
+        """Copies of everything mutable, by name: ``grains/<State array>``,
+        ``integrator/<history slot>``, ``clock``, ``counters``, ``reference_positions``,
+        ``max_overlap``, ``pairs/<k>`` and ``wall_contacts/<k>`` (the neighbour and
+        wall-contact lists with their contact histories and scratch, in tuple order),
+        ``walls/<array>`` and ``reference_offset``."""
+        out = {f"grains/{k}": v.copy() for k, v in self.state.arrays().items()}
+        out.update({f"integrator/{k}": v.copy() for k, v in self.integrator_state.items()})
+        out.update({f"pairs/{k}": v.copy() for k, v in enumerate(self.pairs)})
+        out.update({f"wall_contacts/{k}": v.copy() for k, v in enumerate(self.wall_contacts)})
+        out.update({f"walls/{k}": v.copy() for k, v in vars(self.walls).items()
+                    if isinstance(v, np.ndarray)})
+        for k in ("clock", "counters", "reference_positions", "max_overlap", "reference_offset"):
+            out[k] = getattr(self, k).copy()
+        return out
+
+    def restore(self, snapshot):
+        """Put back a ``snapshot()`` taken from a Simulation built with the same grains,
+        walls and integrator; list capacities follow the snapshot."""
+        missing = [k for k in self.snapshot() if not k.startswith(("pairs/", "wall_contacts/"))
+                   and k not in snapshot]
+        if missing:
+            raise ValueError(f"snapshot lacks {missing}")
+        for k, v in self.state.arrays().items():
+            v[...] = snapshot[f"grains/{k}"]
+        for k, v in self.integrator_state.items():
+            v[...] = snapshot[f"integrator/{k}"]
+        for k, v in vars(self.walls).items():
+            if isinstance(v, np.ndarray):
+                v[...] = snapshot[f"walls/{k}"]
+        self.pairs = tuple(snapshot[f"pairs/{k}"].copy() for k in range(len(self.pairs)))
+        self.wall_contacts = tuple(snapshot[f"wall_contacts/{k}"].copy()
+                                   for k in range(len(self.wall_contacts)))
+        for k in ("clock", "counters", "reference_positions", "max_overlap", "reference_offset"):
+            getattr(self, k)[...] = snapshot[k]
+        self.state.time = self.time
+        self.state.step = self.step

@@ -1,0 +1,144 @@
+"""The two compiled passes over grains that every integrator is made of, dispatched by
+integer id (ids.py).  A step of integrator k: for each stage s < STAGES[k]:
+``before_force(k, s)``, forces, ``after_force(k, s)``.  Fixed grains (fixed[i] == 1)
+never move.  Rotation uses each scheme's own formulas on the rotation vector (w for v,
+alpha = torque/I for a: spheres and disks have isotropic inertia, so Euler's equations
+reduce to I dw/dt = torque in any frame) and turns the orientation by the exact
+rotation of that increment (rotation.rotate_quaternion); leap_frog turns it with
+Omelyan's quaternion leap-frog instead (Oquendo Eq. 16-18).
+
+``history`` (slots, N, 3): the scheme's history, translational slots first, then the
+rotational ones (ids.SLOTS).  ``started``: 0 on the first step after the history was
+(re)set, when multi-step schemes use their exact start-up formulas.
+"""
+import math
+
+from ..._jit import parallel, prange, scalar
+from ..contacts import gather_grain
+from ..neighbors import min_image
+from .beeman import beeman_correct, beeman_drift
+from .gear import gear_correct, gear_drift
+from .ids import BEEMAN, GEAR3, LEAP_FROG, OPTIMIZED_VELOCITY_VERLET, SLOTS
+from .rotation import quaternion_leapfrog, rotate_quaternion
+from .verlet import verlet_correct, verlet_drift
+
+
+@scalar
+def drift(integrator, stage, h, started, vel, acc, history, base, i, d):
+    """Coordinate increment of component d of grain i before the force of ``stage``."""
+    if integrator <= OPTIMIZED_VELOCITY_VERLET:
+        return verlet_drift(integrator, stage, h, started, vel, acc, history, base, i, d)
+    if integrator == BEEMAN:
+        return beeman_drift(h, started, vel, acc, history, base, i, d)
+    return gear_drift(SLOTS[integrator], h, vel, acc, history, base, i, d)
+
+
+@scalar
+def correct(integrator, stage, h, started, a_new, vel, acc, history, base, i, d):
+    """Velocity correction of component d after the force; returns the increment to apply
+    after the force.  h = 0 (the priming evaluation) only stores the acceleration."""
+    if h == 0.0:
+        acc[i, d] = a_new
+        return 0.0
+    if integrator <= OPTIMIZED_VELOCITY_VERLET:
+        return verlet_correct(integrator, stage, h, a_new, vel, acc, history, base, i, d)
+    if integrator == BEEMAN:
+        return beeman_correct(h, started, a_new, vel, acc, history, base, i, d)
+    return gear_correct(integrator, SLOTS[integrator], h, a_new, vel, acc, history, base, i, d)
+
+
+@scalar
+def turn(integrator, orientations, i, px, py, pz, wx, wy, wz, h):
+    """Turn grain i by the rotation vector (px, py, pz) [rad]; leap_frog uses Omelyan's
+    quaternion update with the half-step angular velocity (wx, wy, wz) [rad/s]."""
+    if integrator == LEAP_FROG:
+        q = quaternion_leapfrog(orientations[i, 0], orientations[i, 1], orientations[i, 2],
+                                orientations[i, 3], wx, wy, wz, h)
+    else:
+        q = rotate_quaternion(orientations[i, 0], orientations[i, 1], orientations[i, 2],
+                              orientations[i, 3], px, py, pz)
+    for c in range(4):
+        orientations[i, c] = q[c]
+
+
+@parallel
+def before_force(integrator, stage, dt, started, positions, velocities, angular_velocities,
+                 orientations, accelerations, angular_accelerations, fixed, history):
+    """Drift/predict every free grain before the force evaluation of ``stage``."""
+    rot = SLOTS[integrator]
+    for i in prange(positions.shape[0]):
+        if fixed[i]:
+            continue
+        for d in range(3):
+            positions[i, d] += drift(integrator, stage, dt, started, velocities, accelerations,
+                                     history, 0, i, d)
+        px = drift(integrator, stage, dt, started, angular_velocities, angular_accelerations,
+                   history, rot, i, 0)
+        py = drift(integrator, stage, dt, started, angular_velocities, angular_accelerations,
+                   history, rot, i, 1)
+        pz = drift(integrator, stage, dt, started, angular_velocities, angular_accelerations,
+                   history, rot, i, 2)
+        turn(integrator, orientations, i, px, py, pz, angular_velocities[i, 0],
+             angular_velocities[i, 1], angular_velocities[i, 2], dt)
+
+
+@parallel
+def after_force(integrator, stage, dt, started, dim, gravity, pairs, wall_start, wall_force,
+                wall_torque, forces, torques, masses, inertias, positions, reference_positions,
+                velocities, angular_velocities, orientations, accelerations,
+                angular_accelerations, fixed, periodic_flag, periodic_length, history,
+                block_scratch):
+    """Gather contact forces onto grains, correct velocities with the new accelerations
+    (dt = 0 only stores the accelerations at start-up), and return the largest
+    displacement since the last neighbour build plus a bound on the next drift,
+    |r - r_ref| + |v| dt + |a| dt^2/2 [m], for the half-skin rule (the higher-order
+    terms of Beeman and Gear are O(dt^3), far below the skin).  One pass over grains,
+    in fixed blocks, so the result does not depend on thread timing."""
+    (start, partners, pair_history, scratch_start, scratch_partners, scratch_history,
+     reverse_start, reverse_pairs, pair_force, pair_torque_i, pair_torque_j) = pairs
+    n = masses.size
+    nblock = block_scratch.size
+    rot = SLOTS[integrator]
+    for b in prange(nblock):
+        best = 0.0
+        for i in range(b * n // nblock, (b + 1) * n // nblock):
+            f = gather_grain(i, masses[i], gravity, start, reverse_start, reverse_pairs,
+                             pair_force, pair_torque_i, pair_torque_j, wall_start, wall_force,
+                             wall_torque)
+            for d in range(3):
+                forces[i, d] = f[d]
+                torques[i, d] = f[3 + d]
+            if not fixed[i]:
+                inverse_mass = 1.0 / masses[i]
+                inverse_inertia = 1.0 / inertias[i]
+                for d in range(3):
+                    a = f[d] * inverse_mass
+                    if dim == 2 and d == 2:
+                        a = 0.0
+                    positions[i, d] += correct(integrator, stage, dt, started, a, velocities,
+                                               accelerations, history, 0, i, d)
+                alpha_x = 0.0 if dim == 2 else f[3] * inverse_inertia
+                alpha_y = 0.0 if dim == 2 else f[4] * inverse_inertia
+                px = correct(integrator, stage, dt, started, alpha_x, angular_velocities,
+                             angular_accelerations, history, rot, i, 0)
+                py = correct(integrator, stage, dt, started, alpha_y, angular_velocities,
+                             angular_accelerations, history, rot, i, 1)
+                pz = correct(integrator, stage, dt, started, f[5] * inverse_inertia,
+                             angular_velocities, angular_accelerations, history, rot, i, 2)
+                if px != 0.0 or py != 0.0 or pz != 0.0:
+                    q = rotate_quaternion(orientations[i, 0], orientations[i, 1],
+                                          orientations[i, 2], orientations[i, 3], px, py, pz)
+                    for c in range(4):
+                        orientations[i, c] = q[c]
+            d2 = 0.0
+            v2 = 0.0
+            a2 = 0.0
+            for d in range(3):
+                dx = min_image(positions[i, d] - reference_positions[i, d], periodic_flag[d],
+                               periodic_length[d])
+                d2 += dx * dx
+                v2 += velocities[i, d] * velocities[i, d]
+                a2 += accelerations[i, d] * accelerations[i, d]
+            best = max(best, math.sqrt(d2) + math.sqrt(v2) * dt + 0.5 * math.sqrt(a2) * dt * dt)
+        block_scratch[b] = best
+    return block_scratch.max()

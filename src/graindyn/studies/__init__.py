@@ -1,0 +1,1 @@
+"""Studies: reproducible numerical experiments that write figures and tables."""
