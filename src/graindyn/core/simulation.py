@@ -301,10 +301,12 @@ class Simulation:
 
     # ------------------------------------------------------------------ snapshots
     def snapshot(self):
-        """Every mutable array of the run, by name (copies): grains, contact lists with
-        their histories, walls, clock and counters.  ``restore`` of this dict into a
-        Simulation built with the same inputs continues the run bit for bit."""
+        """Every mutable array of the run, by name (copies): grains, integrator history,
+        contact lists with their histories, walls, clock and counters.  ``restore`` of
+        this dict into a Simulation built with the same inputs continues the run bit for
+        bit."""
         arrays = {f"grains/{k}": v for k, v in self.state.arrays().items()}
+        arrays.update({f"integrator/{k}": v for k, v in self.integrator_state.items()})
         for group, names, values in (("pairs", _PAIR_ARRAYS, self.pairs),
                                      ("wall_contacts", _WALL_CONTACT_ARRAYS,
                                       self.wall_contacts)):
@@ -320,8 +322,11 @@ class Simulation:
         return {k: np.array(v, copy=True) for k, v in arrays.items()}
 
     def restore(self, arrays):
-        """Put a ``snapshot`` back (same grains, walls and model); KeyError or ValueError
-        naming the array if one is missing or of the wrong shape."""
+        """Put a ``snapshot`` back (same grains, walls and model); ValueError naming the
+        arrays that are missing or of the wrong shape."""
+        missing = [k for k in self.snapshot() if k not in arrays]
+        if missing:
+            raise ValueError(f"snapshot lacks {missing}")
         def put(target, name):
             value = np.asarray(arrays[name])
             if value.shape != target.shape or value.dtype != target.dtype:
@@ -331,6 +336,8 @@ class Simulation:
 
         for k, v in self.state.arrays().items():
             put(v, f"grains/{k}")
+        for k, v in self.integrator_state.items():
+            put(v, f"integrator/{k}")
         def lists(group, names):  # scratch arrays are rebuilt empty, like their twins
             return tuple(np.zeros_like(arrays[f"{group}/{k.removeprefix('scratch_')}"])
                          if k.startswith("scratch_") else np.array(arrays[f"{group}/{k}"])
@@ -371,42 +378,3 @@ class Simulation:
         owner = np.repeat(np.arange(n), np.diff(start))
         touching = np.any(force[:m] != 0.0, axis=1)
         return owner[touching], ids[:m][touching].astype(np.int64), force[:m][touching]
-
-    # ------------------------------------------------------------------ snapshots
-    def snapshot(self):
-        """Copies of everything mutable, by name: ``grains/<State array>``,
-        ``integrator/<history slot>``, ``clock``, ``counters``, ``reference_positions``,
-        ``max_overlap``, ``pairs/<k>`` and ``wall_contacts/<k>`` (the neighbour and
-        wall-contact lists with their contact histories and scratch, in tuple order),
-        ``walls/<array>`` and ``reference_offset``."""
-        out = {f"grains/{k}": v.copy() for k, v in self.state.arrays().items()}
-        out.update({f"integrator/{k}": v.copy() for k, v in self.integrator_state.items()})
-        out.update({f"pairs/{k}": v.copy() for k, v in enumerate(self.pairs)})
-        out.update({f"wall_contacts/{k}": v.copy() for k, v in enumerate(self.wall_contacts)})
-        out.update({f"walls/{k}": v.copy() for k, v in vars(self.walls).items()
-                    if isinstance(v, np.ndarray)})
-        for k in ("clock", "counters", "reference_positions", "max_overlap", "reference_offset"):
-            out[k] = getattr(self, k).copy()
-        return out
-
-    def restore(self, snapshot):
-        """Put back a ``snapshot()`` taken from a Simulation built with the same grains,
-        walls and integrator; list capacities follow the snapshot."""
-        missing = [k for k in self.snapshot() if not k.startswith(("pairs/", "wall_contacts/"))
-                   and k not in snapshot]
-        if missing:
-            raise ValueError(f"snapshot lacks {missing}")
-        for k, v in self.state.arrays().items():
-            v[...] = snapshot[f"grains/{k}"]
-        for k, v in self.integrator_state.items():
-            v[...] = snapshot[f"integrator/{k}"]
-        for k, v in vars(self.walls).items():
-            if isinstance(v, np.ndarray):
-                v[...] = snapshot[f"walls/{k}"]
-        self.pairs = tuple(snapshot[f"pairs/{k}"].copy() for k in range(len(self.pairs)))
-        self.wall_contacts = tuple(snapshot[f"wall_contacts/{k}"].copy()
-                                   for k in range(len(self.wall_contacts)))
-        for k in ("clock", "counters", "reference_positions", "max_overlap", "reference_offset"):
-            getattr(self, k)[...] = snapshot[k]
-        self.state.time = self.time
-        self.state.step = self.step
