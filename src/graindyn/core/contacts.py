@@ -17,22 +17,26 @@ from .walls import wall_distance
 
 @scalar
 def contact_response(model, params, a, b, overlap, lever_i, lever_j, r_eff, m_eff, nx, ny, nz,
-                     dvx, dvy, dvz, wx, wy, wz, history, k, dt):
-    """Force on i (3) [N] and the lever part of the torques on i and j, (n x f_t) scaled
-    by -R'_i and -R'_j, plus the energies dissipated [J].  w = R'_i w_i + R'_j w_j [m/s]."""
+                     dvx, dvy, dvz, wx, wy, wz, dwx, dwy, dwz, history, k, dt):
+    """Force on i (3) [N] and the torques on i and j [N m]: the lever part (n x f_t)
+    scaled by -R'_i and -R'_j plus the couple M of the rolling and twisting laws
+    (+M on i, -M on j), and the energies dissipated [J].  w = R'_i w_i + R'_j w_j
+    [m/s], dw = w_i - w_j [rad/s]; lever_j = 0 for a wall (R'_j = infinity)."""
     vx = dvx - (wy * nz - wz * ny)
     vy = dvy - (wz * nx - wx * nz)
     vz = dvz - (wx * ny - wy * nx)
     vn = vx * nx + vy * ny + vz * nz
-    fn, ftx, fty, ftz, dn, dt_ = contact_force(model, params, a, b, overlap, r_eff, m_eff,
-                                               nx, ny, nz, vn, vx - vn * nx, vy - vn * ny,
-                                               vz - vn * nz, history, k, dt)
+    # R'_ij = R'_i R'_j/(R'_i + R'_j) (Oquendo Eq. 7); R'_i against a wall
+    r_roll = lever_i if lever_j == 0.0 else lever_i * lever_j / (lever_i + lever_j)
+    fn, ftx, fty, ftz, mx, my, mz, dn, dt_ = contact_force(
+        model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz, vn, vx - vn * nx,
+        vy - vn * ny, vz - vn * nz, dwx, dwy, dwz, history, k, dt)
     cx = ny * ftz - nz * fty
     cy = nz * ftx - nx * ftz
     cz = nx * fty - ny * ftx
     return (fn * nx + ftx, fn * ny + fty, fn * nz + ftz,
-            -lever_i * cx, -lever_i * cy, -lever_i * cz,
-            -lever_j * cx, -lever_j * cy, -lever_j * cz, dn, dt_)
+            mx - lever_i * cx, my - lever_i * cy, mz - lever_i * cz,
+            -mx - lever_j * cx, -my - lever_j * cy, -mz - lever_j * cz, dn, dt_)
 
 
 @parallel
@@ -74,9 +78,13 @@ def pair_forces(model, params, positions, velocities, angular_velocities, radii,
             rsum = r_i + r_j
             d2 = dx * dx + dy * dy + dz * dz
             if d2 >= rsum * rsum:
-                if pair_force[k, 0] != 0.0 or pair_force[k, 1] != 0.0 or pair_force[k, 2] != 0.0 \
-                        or history[k, 0] != 0.0 or history[k, 1] != 0.0 or history[k, 2] != 0.0:
-                    dissipated_t += contact_release(model, params, a, materials[j], history, k)
+                dirty = pair_force[k, 0] != 0.0 or pair_force[k, 1] != 0.0 \
+                    or pair_force[k, 2] != 0.0
+                for h in range(history.shape[1]):
+                    dirty = dirty or history[k, h] != 0.0
+                if dirty:
+                    dissipated_t += contact_release(model, params, a, materials[j],
+                                                    r_i * r_j / rsum, history, k)
                     for h in range(history.shape[1]):
                         history[k, h] = 0.0
                     for d in range(3):
@@ -103,7 +111,9 @@ def pair_forces(model, params, positions, velocities, angular_velocities, radii,
                 vyi - velocities[j, 1], vzi - velocities[j, 2],
                 lever_i * wxi + lever_j * angular_velocities[j, 0],
                 lever_i * wyi + lever_j * angular_velocities[j, 1],
-                lever_i * wzi + lever_j * angular_velocities[j, 2], history, k, dt)
+                lever_i * wzi + lever_j * angular_velocities[j, 2],
+                wxi - angular_velocities[j, 0], wyi - angular_velocities[j, 1],
+                wzi - angular_velocities[j, 2], history, k, dt)
             for d in range(3):
                 pair_force[k, d] = out[d]
                 pair_torque_i[k, d] = out[3 + d]
@@ -134,10 +144,8 @@ def wall_forces(model, params, positions, velocities, angular_velocities, radii,
             r_i = radii[i]
             overlap = r_i - dist
             if overlap <= 0.0:
-                if wall_history[q, 0] != 0.0 or wall_history[q, 1] != 0.0 \
-                        or wall_history[q, 2] != 0.0:
-                    dissipated_t += contact_release(model, params, materials[i],
-                                                    wall_material[w], wall_history, q)
+                dissipated_t += contact_release(model, params, materials[i], wall_material[w],
+                                                r_i, wall_history, q)
                 for h in range(wall_history.shape[1]):
                     wall_history[q, h] = 0.0
                 for d in range(3):
@@ -152,7 +160,8 @@ def wall_forces(model, params, positions, velocities, angular_velocities, radii,
                 velocities[i, 0] - wall_velocity[w, 0], velocities[i, 1] - wall_velocity[w, 1],
                 velocities[i, 2] - wall_velocity[w, 2],
                 lever * angular_velocities[i, 0], lever * angular_velocities[i, 1],
-                lever * angular_velocities[i, 2], wall_history, q, dt)
+                lever * angular_velocities[i, 2], angular_velocities[i, 0],
+                angular_velocities[i, 1], angular_velocities[i, 2], wall_history, q, dt)
             for d in range(3):
                 wall_force[q, d] = out[d]
                 wall_torque[q, d] = out[3 + d]

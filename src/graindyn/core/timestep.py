@@ -15,7 +15,8 @@ def time_step_report(state, materials, model, dt=None):
 
     Hertz laws: the Rayleigh time of the smallest grain of each material (suggested
     dt = 0.2 T_R, rejected above 0.5 T_R).  Linear law: the undamped contact time
-    pi sqrt(m_min/kn_max) (suggested 1/50, rejected above 1/10 of it).
+    pi sqrt(m_min/kn_max) (suggested 1/50, rejected above 1/10 of it), with the
+    unloading stiffness kn/e^2 for the plastic Walton-Braun law.
     """
     if model.normal == "hertz":
         times = []
@@ -27,7 +28,8 @@ def time_step_report(state, materials, model, dt=None):
                 times.append(rayleigh_time(r, rho, m.shear_modulus, m.poisson_ratio))
         critical, name, suggest, limit = min(times), "Rayleigh time", 0.2, 0.5
     else:
-        kn = max(m.kn for m in materials)
+        kn = max(m.kn / (m.restitution**2 if model.normal == "walton_braun" else 1.0)
+                 for m in materials)
         m_min = float(state.masses.min()) / 2.0
         critical, name, suggest, limit = math.pi * math.sqrt(m_min / kn), \
             "linear contact time", 0.02, 0.1

@@ -1,26 +1,49 @@
 """One contact, all modes: the integer-id dispatcher over the registered sub-models.
 
 Order (as LAMMPS GRANULAR): elastic normal force, damping, clamp to repulsive,
-tangential law capped by the normal force.  Rolling and twisting resistance have the
-id 0 ("none") only, for now.  Law ids and table columns come from physics/registry.py.
+tangential law capped by the normal force, rolling and twisting couples.  Law ids,
+table columns and history offsets come from physics/registry.py; ``model`` is the
+int array of ContactModel.ids().
 """
 import math
 
 from .._jit import scalar
-from .damping import (damping_linear_coefficient, damping_tsuji_coefficient,
-                      damping_viscoelastic_coefficient)
-from .normal import normal_hertz_energy, normal_hertz_stiffness, normal_hooke_energy
-from .registry import COL, DAMPING, NORMAL, TANGENTIAL
-from .tangential import (tangential_coulomb_force, tangential_mindlin_stiffness,
+from .damping import (damping_karrech_coefficient, damping_linear_coefficient,
+                      damping_tsuji_coefficient, damping_viscoelastic_coefficient)
+from .normal import (normal_hertz_energy, normal_hertz_stiffness, normal_hooke_energy,
+                     normal_walton_braun_energy, normal_walton_braun_force,
+                     normal_walton_braun_silo_force)
+from .registry import (COL, DAMPING, HISTORY, LIMIT_DAMPING, NORMAL, ROLLING, TANGENTIAL,
+                       TWISTING)
+from .rolling import rolling_constant_torque
+from .tangential import (tangential_coulomb_force, tangential_mindlin_rescale,
+                         tangential_mindlin_stiffness, tangential_oquendo_force,
                          tangential_spring_energy, tangential_spring_force)
+from .twisting import twisting_constant_torque, twisting_oquendo_torque, twisting_spring_torque
 
 _HOOKE = NORMAL["hooke"]
+_HERTZ = NORMAL["hertz"]
+_WALTON_BRAUN = NORMAL["walton_braun"]
+_WALTON_BRAUN_SILO = NORMAL["walton_braun_silo"]
 _LINEAR = DAMPING["linear"]
 _VISCOELASTIC = DAMPING["viscoelastic"]
 _TSUJI = DAMPING["tsuji"]
+_KARRECH_DAMPING = DAMPING["karrech"]
 _COULOMB = TANGENTIAL["coulomb"]
 _CUNDALL = TANGENTIAL["cundall_strack"]
 _MINDLIN = TANGENTIAL["mindlin"]
+_KARRECH = TANGENTIAL["karrech"]
+_OQUENDO = TANGENTIAL["oquendo"]
+_ROLL_CONSTANT = ROLLING["constant"]
+_ROLL_EPSD = ROLLING["epsd"]
+_TWIST_OQUENDO = TWISTING["oquendo"]
+_TWIST_CONSTANT = TWISTING["constant"]
+_TWIST_EPSD = TWISTING["epsd"]
+# history offsets in the model array
+_H_NORMAL = HISTORY
+_H_TANGENTIAL = HISTORY + 2
+_H_ROLLING = HISTORY + 3
+_H_TWISTING = HISTORY + 4
 _KN = COL["kn"]
 _E = COL["youngs_eff"]
 _G = COL["shear_eff"]
@@ -31,31 +54,63 @@ _ALPHA = COL["tsuji_alpha"]
 _KT = COL["kt"]
 _XT = COL["tangential_damping"]
 _MU = COL["friction_sliding"]
+_MU_S = COL["friction_static"]
+_MU_R = COL["friction_rolling"]
+_EN = COL["restitution"]
+_SLIP = COL["slip_threshold"]
+_GAMMA_NT = COL["gamma_nt"]
+_ALPHA_N = COL["alpha_n"]
+_ALPHA_T = COL["alpha_t"]
+_K_ROLL = COL["rolling_stiffness"]
+_C_ROLL = COL["rolling_damping"]
+_MU_TW = COL["friction_twisting"]
+_K_TW = COL["twisting_stiffness"]
+_C_TW = COL["twisting_damping"]
 
 
 @scalar
-def contact_force(model, params, a, b, overlap, r_eff, m_eff, nx, ny, nz, vn, vtx, vty, vtz,
-                  history, k, dt):
-    """Force on grain i of one contact with overlap > 0.
+def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz, vn, vtx,
+                  vty, vtz, wx, wy, wz, history, k, dt):
+    """Force on grain i and couple on i of one contact with overlap > 0.
 
-    model : (6,) int ids (normal, damping, tangential, rolling, twisting) and the
-        limit_damping flag: 1 keeps the normal force repulsive (Perez Eq. 14, 17),
-        0 lets the dashpot pull at the end of a contact (the LAMMPS default)
+    model : (11,) int ids (normal, damping, tangential, rolling, twisting), the
+        limit_damping flag (1 keeps the normal force repulsive, Perez Eq. 14, 17; 0
+        lets the dashpot pull at the end of a contact, the LAMMPS default), and the
+        five history offsets
     params[a, b] : (NCOL,) parameters of the material pair (a, b);  overlap [m];
-    r_eff [m];  m_eff [kg]
+    r_eff = R* [m];  r_roll = R'_ij [m], the reduced corrected radius of Oquendo
+    Eq. 7;  m_eff [kg]
     n : unit normal from j to i;  vn = v_rel.n [m/s] (negative when approaching)
-    v_t : tangential relative velocity of i at the contact point [m/s]
+    v_t : tangential relative velocity of i at the contact point [m/s] (Oquendo Eq. 4)
+    w : relative angular velocity w_i - w_j [rad/s]
     history[k] : this contact's history values, updated in place;  dt [s]
     (Whole arrays and indices are passed rather than row views: a view costs two
     atomic reference-count updates per contact in numba.)
-    Returns (f_n >= 0 [N], f_t (3) [N], normal and tangential energy dissipated [J]).
+    Returns (f_n >= 0 [N], f_t (3) [N], couple M (3) [N m] on i (-M on j), normal
+    and tangential energy dissipated [J]; rolling and twisting losses count as
+    tangential).
     """
     radius = math.sqrt(r_eff * overlap)  # Hertz contact radius a [m]
-    if model[0] == _HOOKE:
+    normal = model[0]
+    lost_n = 0.0
+    if normal == _HOOKE:
         stiffness = params[a, b, _KN]
-    else:
+        tangent = stiffness
+        f_el = stiffness * overlap  # Perez Eq. 14
+    elif normal == _HERTZ:
         stiffness = normal_hertz_stiffness(radius, params[a, b, _E])
-    f_el = stiffness * overlap  # Perez Eq. 14 / Eq. 17, Oquendo Eq. 1
+        tangent = 1.5 * stiffness
+        f_el = stiffness * overlap  # Perez Eq. 17, Oquendo Eq. 1, Karrech Eq. 5
+    elif normal == _WALTON_BRAUN:
+        stiffness = params[a, b, _KN]
+        tangent = stiffness
+        f_el, lost_n = normal_walton_braun_force(overlap, stiffness, params[a, b, _EN],
+                                                 history, k, model[_H_NORMAL])
+    else:
+        stiffness = params[a, b, _KN]
+        tangent = stiffness
+        f_el, lost_n = normal_walton_braun_silo_force(overlap, stiffness, params[a, b, _EN],
+                                                      history, k, model[_H_NORMAL])
     damping = model[1]
     if damping == _LINEAR:
         c = damping_linear_coefficient(m_eff, params[a, b, _KN], params[a, b, _BETA],
@@ -64,57 +119,133 @@ def contact_force(model, params, a, b, overlap, r_eff, m_eff, nx, ny, nz, vn, vt
         c = damping_viscoelastic_coefficient(m_eff, overlap, params[a, b, _GAMMA_N])
     elif damping == _TSUJI:
         c = damping_tsuji_coefficient(m_eff, stiffness, params[a, b, _ALPHA])
+    elif damping == _KARRECH_DAMPING:
+        c = damping_karrech_coefficient(m_eff, tangent, params[a, b, _ALPHA_N])
     else:
         c = 0.0
     rate = -vn
     fn = f_el + c * rate
-    if fn < 0.0 and model[5] != 0:
+    if fn < 0.0 and model[LIMIT_DAMPING] != 0:
         fn = 0.0
-    dissipated_n = (fn - f_el) * rate * dt
+    dissipated_n = (fn - f_el) * rate * dt + lost_n
     cap = abs(fn)  # the friction limit uses |f_n| when the dashpot pulls (as LAMMPS)
     tangential = model[2]
+    ht = model[_H_TANGENTIAL]
+    mx = 0.0
+    my = 0.0
+    mz = 0.0
+    # rolling part of the relative rotation (tangent-plane component) and twist rate
+    wn = wx * nx + wy * ny + wz * nz
+    wrx = wx - wn * nx
+    wry = wy - wn * ny
+    wrz = wz - wn * nz
     if tangential == _COULOMB:
         ftx, fty, ftz, dissipated_t = tangential_coulomb_force(params[a, b, _MU], cap, vtx, vty,
                                                                vtz, dt)
     elif tangential == _CUNDALL:
         ftx, fty, ftz, dissipated_t = tangential_spring_force(
-            params[a, b, _KT], params[a, b, _XT] * c, params[a, b, _MU], cap, nx, ny, nz,
-            vtx, vty, vtz, history, k, dt)
-    elif tangential == _MINDLIN:
-        kt = tangential_mindlin_stiffness(params[a, b, _G], radius)
-        ftx, fty, ftz, dissipated_t = tangential_spring_force(
-            kt, params[a, b, _XT] * c, params[a, b, _MU], cap, nx, ny, nz, vtx, vty, vtz,
-            history, k, dt)
+            params[a, b, _KT], params[a, b, _XT] * c, params[a, b, _MU], cap, 0, nx, ny, nz,
+            vtx, vty, vtz, history, k, ht, dt)
+    elif tangential == _MINDLIN or tangential == _KARRECH or tangential == _OQUENDO:
+        kt, lost_t = tangential_mindlin_rescale(params[a, b, _G], radius, history, k, ht)
+        if tangential == _MINDLIN:
+            ftx, fty, ftz, dissipated_t = tangential_spring_force(
+                kt, params[a, b, _XT] * c, params[a, b, _MU], cap, 0, nx, ny, nz, vtx, vty,
+                vtz, history, k, ht, dt)
+        elif tangential == _KARRECH:
+            ftx, fty, ftz, dissipated_t = tangential_spring_force(
+                kt, damping_karrech_coefficient(m_eff, kt, params[a, b, _ALPHA_T]),
+                params[a, b, _MU], cap, 1, nx, ny, nz, vtx, vty, vtz, history, k, ht, dt)
+        else:
+            threshold = params[a, b, _SLIP]
+            ftx, fty, ftz, dissipated_t, sliding = tangential_oquendo_force(
+                kt, params[a, b, _XT] * c, params[a, b, _MU], params[a, b, _MU_S], threshold,
+                cap, nx, ny, nz, vtx, vty, vtz, history, k, ht, dt)
+            # rolling (Oquendo Eq. 7-9): not sliding and R'_ij |w_r| above the threshold
+            if sliding == 0.0 and r_roll * math.sqrt(wrx * wrx + wry * wry + wrz * wrz) \
+                    > threshold:
+                mx, my, mz, lost_r = rolling_constant_torque(params[a, b, _MU_R] * r_roll * cap,
+                                                             wrx, wry, wrz, dt)
+                dissipated_t += lost_r
+        dissipated_t += lost_t
     else:
         ftx = 0.0
         fty = 0.0
         ftz = 0.0
         dissipated_t = 0.0
-    return fn, ftx, fty, ftz, dissipated_n, dissipated_t
+    rolling = model[3]
+    if rolling == _ROLL_CONSTANT:
+        rx, ry, rz, lost_r = rolling_constant_torque(params[a, b, _MU_R] * r_eff * cap, wrx,
+                                                     wry, wrz, dt)
+    elif rolling == _ROLL_EPSD:
+        r2 = r_eff * r_eff
+        rx, ry, rz, lost_r = tangential_spring_force(
+            params[a, b, _K_ROLL] * r2, params[a, b, _C_ROLL] * r2, params[a, b, _MU_R] * r_eff,
+            cap, 2, nx, ny, nz, wrx, wry, wrz, history, k, model[_H_ROLLING], dt)
+    else:
+        rx = 0.0
+        ry = 0.0
+        rz = 0.0
+        lost_r = 0.0
+    twisting = model[4]
+    if twisting == _TWIST_OQUENDO:
+        tw, lost_w = twisting_oquendo_torque(params[a, b, _GAMMA_NT], m_eff, r_eff, overlap, wn,
+                                             dt)
+    elif twisting == _TWIST_CONSTANT:
+        tw, lost_w = twisting_constant_torque(params[a, b, _MU_TW] * radius * cap, wn, dt)
+    elif twisting == _TWIST_EPSD:
+        tw, lost_w = twisting_spring_torque(params[a, b, _K_TW], params[a, b, _C_TW],
+                                            params[a, b, _MU_TW] * radius * cap, wn, history, k,
+                                            model[_H_TWISTING], dt)
+    else:
+        tw = 0.0
+        lost_w = 0.0
+    return (fn, ftx, fty, ftz, mx + rx + tw * nx, my + ry + tw * ny, mz + rz + tw * nz,
+            dissipated_n, dissipated_t + lost_r + lost_w)
 
 
 @scalar
-def contact_energy(model, params, a, b, overlap, r_eff, history, k):
-    """Elastic energy [J] stored in one contact: normal spring plus tangential spring."""
-    if overlap <= 0.0:
-        return 0.0
-    if model[0] == _HOOKE:
-        energy = normal_hooke_energy(overlap, params[a, b, _KN])
-    else:
-        energy = normal_hertz_energy(overlap, r_eff, params[a, b, _E])
-    if model[2] == _CUNDALL:
-        energy += tangential_spring_energy(params[a, b, _KT], history, k)
-    elif model[2] == _MINDLIN:
-        kt = tangential_mindlin_stiffness(params[a, b, _G], math.sqrt(r_eff * overlap))
-        energy += tangential_spring_energy(kt, history, k)
+def _spring_energy(model, params, a, b, r_eff, history, k):
+    """Energy [J] held in the history springs: tangential, rolling and twisting."""
+    energy = 0.0
+    tangential = model[2]
+    ht = model[_H_TANGENTIAL]
+    if tangential == _CUNDALL:
+        energy += tangential_spring_energy(params[a, b, _KT], history, k, ht)
+    elif tangential == _MINDLIN or tangential == _KARRECH or tangential == _OQUENDO:
+        kt = tangential_mindlin_stiffness(params[a, b, _G], history[k, ht + 3])
+        energy += tangential_spring_energy(kt, history, k, ht)
+    if model[3] == _ROLL_EPSD:
+        energy += tangential_spring_energy(params[a, b, _K_ROLL] * r_eff * r_eff, history, k,
+                                           model[_H_ROLLING])
+    if model[4] == _TWIST_EPSD:
+        theta = history[k, model[_H_TWISTING]]
+        energy += 0.5 * params[a, b, _K_TW] * theta * theta
     return energy
 
 
 @scalar
-def contact_release(model, params, a, b, history, k):
-    """Energy [J] left in the tangential spring when a contact opens; it is lost with
-    the history and counts as tangential dissipation.  (The Mindlin stiffness vanishes
-    with the overlap, so its spring holds nothing at separation.)"""
-    if model[2] == _CUNDALL:
-        return tangential_spring_energy(params[a, b, _KT], history, k)
-    return 0.0
+def contact_energy(model, params, a, b, overlap, r_eff, history, k):
+    """Elastic energy [J] stored in one contact: normal spring plus the history springs
+    (the Mindlin spring with the stiffness of its last evaluation).  For the
+    Walton-Braun laws, the energy unloading would give back."""
+    if overlap <= 0.0:
+        return 0.0
+    normal = model[0]
+    if normal == _HOOKE:
+        energy = normal_hooke_energy(overlap, params[a, b, _KN])
+    elif normal == _HERTZ:
+        energy = normal_hertz_energy(overlap, r_eff, params[a, b, _E])
+    elif normal == _WALTON_BRAUN:
+        energy = normal_walton_braun_energy(overlap, params[a, b, _KN], params[a, b, _EN],
+                                            history, k, model[_H_NORMAL])
+    else:
+        energy = normal_hooke_energy(overlap, params[a, b, _EN] ** 2 * params[a, b, _KN])
+    return energy + _spring_energy(model, params, a, b, r_eff, history, k)
+
+
+@scalar
+def contact_release(model, params, a, b, r_eff, history, k):
+    """Energy [J] left in the history springs (tangential, rolling, twisting) when a
+    contact opens; it is lost with the history and counts as tangential dissipation."""
+    return _spring_energy(model, params, a, b, r_eff, history, k)

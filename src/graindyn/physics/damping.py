@@ -36,3 +36,18 @@ def damping_tsuji_coefficient(m_eff, stiffness, alpha):
     0.1 <= e <= 0.99 when the force may turn attractive (``limit_damping`` off).
     """
     return 1.4142135623730951 * alpha * math.sqrt(m_eff * stiffness)
+
+
+@scalar
+def damping_karrech_coefficient(m_eff, tangent_stiffness, alpha):
+    """c = 2 alpha sqrt(m* k) [kg/s] (Karrech Eq. 7, gamma_{n,t} = 2 alpha sqrt(m k)).
+
+    Karrech writes the force as (m/2) gamma v with gamma = 2 alpha sqrt(m k); the units
+    only agree when (m/2) is read as the reduced mass of the pair, which multiplies
+    nothing: c = 2 alpha sqrt(m* k).  k is the tangent stiffness: df/dxi = 2 E* a for
+    Hertz (so c grows as xi^(1/4) and the restitution does not depend on the speed),
+    kn for a linear spring, 8 G* a for Mindlin's tangential spring.  For a linear
+    spring alpha = -ln e/sqrt(pi^2 + ln^2 e) (Da Cruz et al. 2005) gives restitution e
+    when the force may pull.
+    """
+    return 2.0 * alpha * math.sqrt(m_eff * tangent_stiffness)

@@ -1,6 +1,10 @@
 """Normal elastic laws, f = k xi with the secant stiffness k [N/m], and their stored
 energy [J].  Linear spring: k = kn (Perez Eq. 14).  Hertz: k = 4/3 E* a with the
 contact radius a = sqrt(R* xi) (Perez Eq. 17; Oquendo Eq. 1 with V_iV_j/(V_i+V_j) = E*).
+Walton-Braun: two linear springs, one for loading and one for unloading, in the two
+variants of Perez Fig. 2 (history: one value per contact).  All these laws are the
+same for disks (2D) and spheres: Hertz is the 3D law, the linear ones are used for
+both.
 
 overlap xi = R_i + R_j - |r_i - r_j| [m] (Perez Eq. 13), r_eff = R_i R_j/(R_i+R_j) [m].
 """
@@ -25,3 +29,53 @@ def normal_hertz_energy(overlap, r_eff, youngs_eff):
 def normal_hertz_stiffness(contact_radius, youngs_eff):
     """Secant stiffness f/xi = 4/3 E* a [N/m] of the Hertz law, a = sqrt(R* xi) [m]."""
     return 4.0 / 3.0 * youngs_eff * contact_radius
+
+
+@scalar
+def normal_walton_braun_force(overlap, kn, restitution, history, k, h):
+    """Walton & Braun (1986) loading/unloading springs, plastic form (Perez Sec. 3.1,
+    Fig. 2a): f = min(k1 xi, k2 (xi - xi0)), f >= 0, with k1 = kn on loading and the
+    stiffer k2 = kn/e^2 on unloading; xi0 = xi_max (1 - e^2) is where the force
+    vanishes, xi_max the largest overlap of the contact (history[k, h]).
+
+    Energy returned / energy loaded = k1/k2 = e^2, so the restitution is the input e
+    whatever the speed.  Reloading after a partial unloading follows the k2 line up to
+    xi_max, then k1.  Returns (f [N], energy dissipated in the step [J]): the loss is a
+    function of the state, k1 (1 - e^2) (xi_max_new^2 - xi_max_old^2)/2, so with
+    ``normal_walton_braun_energy`` the bookkeeping is exact.
+    """
+    e2 = restitution * restitution
+    old = history[k, h]
+    peak = max(old, overlap)
+    history[k, h] = peak
+    f = min(kn * overlap, kn / e2 * (overlap - peak * (1.0 - e2)))
+    return max(f, 0.0), 0.5 * kn * (1.0 - e2) * (peak * peak - old * old)
+
+
+@scalar
+def normal_walton_braun_energy(overlap, kn, restitution, history, k, h):
+    """Energy [J] the plastic Walton-Braun spring gives back on unloading from the
+    present state: k2 (xi - xi0)^2/2 with k2 = kn/e^2, xi0 = xi_max (1 - e^2)."""
+    e2 = restitution * restitution
+    x = overlap - history[k, h] * (1.0 - e2)
+    return 0.5 * kn / e2 * x * x if x > 0.0 else 0.0
+
+
+@scalar
+def normal_walton_braun_silo_force(overlap, kn, restitution, history, k, h):
+    """Walton-Braun springs as in the silo model (Perez Sec. 3.1 Fig. 2b, Sec. 4):
+    f = kn xi while the overlap grows, f = e^2 kn xi while it shrinks (the
+    paper's "reduced by a restitution factor eps^2", eps^2 = 0.9 there), so the
+    restitution is e.  Loading and unloading are told apart by comparing the overlap
+    with its value at the previous evaluation (history[k, h]).
+
+    Returns (f [N], energy dissipated in the step [J]): the stored energy is taken as
+    what unloading would give back, e^2 kn xi^2/2, so loading by d(xi^2/2) costs
+    (1 - e^2) kn d(xi^2/2) and unloading costs nothing.
+    """
+    e2 = restitution * restitution
+    old = history[k, h]
+    history[k, h] = overlap
+    if overlap >= old:
+        return kn * overlap, 0.5 * (1.0 - e2) * kn * (overlap * overlap - old * old)
+    return e2 * kn * overlap, 0.0

@@ -3,7 +3,8 @@
 Every law belongs to a mode (normal, damping, tangential, rolling, twisting), has an
 integer id (its position in its mode's list: generated here, never written twice),
 the pair-table columns it reads, and the number of history values it keeps per
-contact.  The pair-parameter table ``params[material_i, material_j, column]`` has the
+contact.  A contact's history row holds the chosen laws' values one after the other
+in the order of ``HISTORY_ORDER``; ``history_layout`` gives each mode its offset.  The pair-parameter table ``params[material_i, material_j, column]`` has the
 columns of ``COLUMNS``; kernels index it with the integer constants of ``COL``.
 
 To add a law: write its scalar function in physics/<mode>.py, add a row below, add a
@@ -52,6 +53,19 @@ COLUMNS = (
     Column("friction_static", "-", 0.0, 10.0, "static friction coefficient mu_s"),
     Column("friction_rolling", "-", 0.0, 10.0, "rolling friction coefficient"),
     Column("restitution", "-", 0.0, 1.0, "normal restitution coefficient (input)"),
+    Column("slip_threshold", "m/s", 0.0, 1e3,
+           "contact-point speed below which Oquendo's grains stick or roll (Eq. 4, 7)"),
+    Column("gamma_nt", "1/s", 0.0, 1e15, "Oquendo twisting damping (Eq. 2)"),
+    Column("alpha_n", "-", 0.0, 1e3, "Karrech normal dissipation coefficient (Eq. 7)"),
+    Column("alpha_t", "-", 0.0, 1e3, "Karrech tangential dissipation coefficient (Eq. 7)"),
+    Column("rolling_stiffness", "N/m", 0.0, 1e15,
+           "EPSD rolling spring k_roll; torque stiffness k_roll R*^2 [N m/rad]"),
+    Column("rolling_damping", "kg/s", 0.0, 1e15,
+           "EPSD rolling dashpot gamma_roll; torque damping gamma_roll R*^2 [N m s]"),
+    Column("friction_twisting", "-", 0.0, 10.0,
+           "twisting friction coefficient: limit torque mu_tw a |f_n|, a = sqrt(R* xi)"),
+    Column("twisting_stiffness", "N m/rad", 0.0, 1e15, "EPSD twisting spring"),
+    Column("twisting_damping", "N m s", 0.0, 1e15, "EPSD twisting dashpot"),
 )
 COL = {c.name: k for k, c in enumerate(COLUMNS)}
 NCOL = len(COLUMNS)
@@ -59,6 +73,10 @@ NCOL = len(COLUMNS)
 LAWS = (
     Law("normal", "hooke", ("kn",), 0, "Perez Eq. 14: f = kn xi"),
     Law("normal", "hertz", ("youngs_eff",), 0, "Perez Eq. 17, Oquendo Eq. 1: f = 4/3 E* sqrt(R*) xi^1.5"),
+    Law("normal", "walton_braun", ("kn", "restitution"), 1,
+        "Walton & Braun 1986 (Perez Sec. 3.1, Fig. 2a): load kn, unload kn/e^2, plastic"),
+    Law("normal", "walton_braun_silo", ("kn", "restitution"), 1,
+        "Perez Sec. 3.1 Fig. 2b and Sec. 4: load kn, unload e^2 kn"),
     Law("damping", "none", (), 0, "no normal dissipation"),
     Law("damping", "linear", ("damping_ratio", "damping_constant"), 0,
         "Perez Eq. 14-16: f = Gamma xi', Gamma = 2 beta sqrt(kn m*) + Gamma_0"),
@@ -66,16 +84,38 @@ LAWS = (
         "Oquendo Eq. 1, Perez Eq. 17: f = m* gamma_n sqrt(xi) xi'"),
     Law("damping", "tsuji", ("tsuji_alpha",), 0,
         "Tsuji et al. 1992 as in LAMMPS: f = alpha sqrt(m* f_el/xi) xi'"),
+    Law("damping", "karrech", ("alpha_n",), 0,
+        "Karrech Eq. 7: f = 2 alpha_n sqrt(m* k_n) xi', k_n = df/dxi"),
     Law("tangential", "none", (), 0, "frictionless"),
     Law("tangential", "coulomb", ("friction_sliding",), 0,
         "Perez Eq. 19: f = -mu_d f_n v_t/|v_t|"),
     Law("tangential", "cundall_strack", ("kt", "tangential_damping", "friction_sliding"), 3,
         "Perez Eq. 20-23: capped spring + dashpot, 3D vector form"),
-    Law("tangential", "mindlin", ("shear_eff", "tangential_damping", "friction_sliding"), 3,
-        "Mindlin no-slip spring kt = 8 G* sqrt(R* xi) with Coulomb cap (Karrech Eq. 6)"),
+    Law("tangential", "mindlin", ("shear_eff", "tangential_damping", "friction_sliding"), 4,
+        "Mindlin spring kt = 8 G* sqrt(R* xi) (Karrech Eq. 6), Coulomb cap on spring + "
+        "dashpot, Elata-Berryman unloading"),
+    Law("tangential", "karrech", ("shear_eff", "alpha_t", "friction_sliding"), 4,
+        "Karrech Eq. 6-7: Mindlin spring capped at mu f_n, dashpot 2 alpha_t sqrt(m* kt) "
+        "outside the cap, Elata-Berryman unloading"),
+    Law("tangential", "oquendo", ("shear_eff", "tangential_damping", "friction_sliding",
+                                  "friction_static", "friction_rolling", "slip_threshold"), 4,
+        "Oquendo Eq. 4-10: sliding mu_k, rolling tan(theta_r), static mu_s"),
     Law("rolling", "none", (), 0, "no rolling resistance"),
+    Law("rolling", "constant", ("friction_rolling",), 0,
+        "type A (Ai et al. 2011): M = -mu_r R* |f_n| w_r/|w_r|"),
+    Law("rolling", "epsd", ("rolling_stiffness", "rolling_damping", "friction_rolling"), 3,
+        "elastic-plastic spring-dashpot (Ai et al. 2011 type C): capped at mu_r R* |f_n|"),
     Law("twisting", "none", (), 0, "no twisting resistance"),
+    Law("twisting", "oquendo", ("gamma_nt",), 0,
+        "Oquendo Eq. 2: M = -4 pi gamma_nt m* R* xi w_n"),
+    Law("twisting", "constant", ("friction_twisting",), 0,
+        "M = -mu_tw a |f_n| sign(w_n) n, a = sqrt(R* xi)"),
+    Law("twisting", "epsd", ("twisting_stiffness", "twisting_damping", "friction_twisting"), 1,
+        "elastic-plastic spring-dashpot about n, capped at mu_tw a |f_n|"),
 )
+
+# where each mode's history values sit in a contact's history row, first to last
+HISTORY_ORDER = ("tangential", "normal", "rolling", "twisting", "damping")
 
 
 def laws(mode: str) -> tuple[Law, ...]:
@@ -98,7 +138,23 @@ def get(mode: str, name: str) -> Law:
     return laws(mode)[law_id(mode, name)]
 
 
+def history_layout(names: dict) -> tuple[dict, int]:
+    """Offsets of each mode's history values in a contact's history row, and the row
+    length, for the laws ``names = {mode: law name}``."""
+    offsets, size = {}, 0
+    for mode in HISTORY_ORDER:
+        offsets[mode] = size
+        size += get(mode, names[mode]).history
+    return offsets, size
+
+
 # integer ids used by the compiled dispatcher, generated from the table above
 NORMAL = {law.name: k for k, law in enumerate(laws("normal"))}
 DAMPING = {law.name: k for k, law in enumerate(laws("damping"))}
 TANGENTIAL = {law.name: k for k, law in enumerate(laws("tangential"))}
+ROLLING = {law.name: k for k, law in enumerate(laws("rolling"))}
+TWISTING = {law.name: k for k, law in enumerate(laws("twisting"))}
+# model array: the five law ids (MODES order), the limit_damping flag, then the five
+# history offsets (MODES order) at HISTORY + mode index
+LIMIT_DAMPING = len(MODES)
+HISTORY = len(MODES) + 1

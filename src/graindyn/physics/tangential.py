@@ -1,6 +1,8 @@
 """Tangential (friction) laws.  Forces [N] act on grain i; v_t [m/s] is the tangential
 velocity of i relative to j at the contact point; each returns the force and the
-energy [J] dissipated during the step dt [s].
+energy [J] dissipated during the step dt [s].  History values of a contact sit in
+history[k, h:h + n], h the tangential offset of the model (registry.history_layout).
+The same functions serve disks: in 2D v_t and the spring stay in the plane.
 """
 import math
 
@@ -18,20 +20,27 @@ def tangential_coulomb_force(mu, fn, vtx, vty, vtz, dt):
 
 
 @scalar
-def tangential_spring_force(kt, eta_t, mu, fn, nx, ny, nz, vtx, vty, vtz, history, k, dt):
+def tangential_spring_force(kt, eta_t, mu, fn, cap, nx, ny, nz, vtx, vty, vtz,
+                            history, k, h, dt):
     """Capped tangential spring with dashpot: Cundall-Strack (Perez Eq. 20-23) in 3D.
 
-    history[k, 0:3] holds the spring elongation zeta [m].  Each step zeta is first rotated
-    into the current tangent plane keeping its length, then grows by v_t dt (Eq. 20);
-    the trial force f = -kt zeta - eta_t v_t is capped at mu f_n (Eq. 22), and when it
-    is capped zeta is reset so that the spring and dashpot give exactly the capped
-    force: the elongation stops growing while the contact slides (Eq. 23).
+    history[k, h:h+3] holds the spring elongation zeta [m].  Each step zeta is first
+    rotated into the current tangent plane keeping its length, then grows by v_t dt
+    (Eq. 20).  ``cap`` says what mu f_n limits:
+    0: the trial force f = -kt zeta - eta_t v_t (Eq. 22); when capped zeta is reset so
+       that spring and dashpot give exactly the capped force: the elongation stops
+       growing while the contact slides (Eq. 23).  (When the dashpot alone exceeds
+       the cap this books a negative loss for the step, as LAMMPS does.)
+    1: the spring force -kt zeta only, the dashpot is added to it (Karrech Eq. 7);
+    2: the spring force only, and the dashpot acts only below the cap (Ai et al. 2011
+       EPSD: no damping at full mobilisation).
+    With 1 and 2 the step never books a negative loss.
     kt [N/m], eta_t [kg/s].  Returns f_t (3) and the energy dissipated in the step,
     the work -f_t.v_t dt not stored in the spring.
     """
-    zx = history[k, 0]
-    zy = history[k, 1]
-    zz = history[k, 2]
+    zx = history[k, h]
+    zy = history[k, h + 1]
+    zz = history[k, h + 2]
     old = zx * zx + zy * zy + zz * zz
     if old > 0.0:
         zn = zx * nx + zy * ny + zz * nz
@@ -48,27 +57,34 @@ def tangential_spring_force(kt, eta_t, mu, fn, nx, ny, nz, vtx, vty, vtz, histor
     zx += vtx * dt
     zy += vty * dt
     zz += vtz * dt
-    fx = -kt * zx - eta_t * vtx
-    fy = -kt * zy - eta_t * vty
-    fz = -kt * zz - eta_t * vtz
+    # the part of the force that is capped: spring + dashpot, or the spring alone
+    viscous = eta_t if cap == 0 else 0.0
+    fx = -kt * zx - viscous * vtx
+    fy = -kt * zy - viscous * vty
+    fz = -kt * zz - viscous * vtz
     f2 = fx * fx + fy * fy + fz * fz
-    cap = mu * fn
-    if f2 > cap * cap:
-        s = cap / math.sqrt(f2)
+    limit = mu * fn
+    capped = f2 > limit * limit
+    if capped:
+        s = limit / math.sqrt(f2)
         fx *= s
         fy *= s
         fz *= s
         if kt > 0.0:
-            zx = -(fx + eta_t * vtx) / kt
-            zy = -(fy + eta_t * vty) / kt
-            zz = -(fz + eta_t * vtz) / kt
+            zx = -(fx + viscous * vtx) / kt
+            zy = -(fy + viscous * vty) / kt
+            zz = -(fz + viscous * vtz) / kt
         else:
             zx = 0.0
             zy = 0.0
             zz = 0.0
-    history[k, 0] = zx
-    history[k, 1] = zy
-    history[k, 2] = zz
+    if cap == 1 or (cap == 2 and not capped):
+        fx -= eta_t * vtx
+        fy -= eta_t * vty
+        fz -= eta_t * vtz
+    history[k, h] = zx
+    history[k, h + 1] = zy
+    history[k, h + 2] = zz
     energy_after = 0.5 * kt * (zx * zx + zy * zy + zz * zz)
     work = -(fx * vtx + fy * vty + fz * vtz) * dt
     return fx, fy, fz, work - (energy_after - energy_before)
@@ -81,6 +97,64 @@ def tangential_mindlin_stiffness(shear_eff, contact_radius):
 
 
 @scalar
-def tangential_spring_energy(kt, history, k):
-    """Energy kt |zeta|^2/2 [J] stored in the tangential spring history[k, 0:3]."""
-    return 0.5 * kt * (history[k, 0] ** 2 + history[k, 1] ** 2 + history[k, 2] ** 2)
+def tangential_spring_energy(kt, history, k, h):
+    """Energy kt |zeta|^2/2 [J] stored in the tangential spring history[k, h:h+3]."""
+    return 0.5 * kt * (history[k, h] ** 2 + history[k, h + 1] ** 2 + history[k, h + 2] ** 2)
+
+
+@scalar
+def tangential_mindlin_rescale(shear_eff, contact_radius, history, k, h):
+    """Elata & Berryman 1996 / Roux correction of the Mindlin spring (Karrech Sec. 2:
+    "when F_n decreases by dF_n, the tangential force at F_n - dF_n is assigned to
+    F_t"), before the step's increment.
+
+    history[k, h:h+3] is the elongation zeta, history[k, h+3] the contact radius a of
+    the previous evaluation.  The stiffness kt = 8 G* a follows a.  When a grows
+    (loading) zeta shrinks by a_old/a so the force kt zeta is kept: new stiffness acts
+    only on new increments (dF_t = kt d(delta_t)).  When a shrinks (unloading) zeta is
+    kept, so the force scales down with kt, to the value it has under the smaller
+    normal force.  The stored energy kt |zeta|^2/2 never grows by either move.
+    Returns (kt [N/m] and the energy [J] the move released, counted as dissipated).
+    """
+    a_old = history[k, h + 3]
+    history[k, h + 3] = contact_radius
+    kt = tangential_mindlin_stiffness(shear_eff, contact_radius)
+    if a_old <= 0.0:
+        return kt, 0.0
+    before = tangential_spring_energy(tangential_mindlin_stiffness(shear_eff, a_old), history,
+                                      k, h)
+    if contact_radius > a_old:
+        s = a_old / contact_radius
+        history[k, h] *= s
+        history[k, h + 1] *= s
+        history[k, h + 2] *= s
+    return kt, before - tangential_spring_energy(kt, history, k, h)
+
+
+@scalar
+def tangential_oquendo_force(kt, eta_t, mu_k, mu_s, threshold, fn, nx, ny, nz, vtx, vty,
+                             vtz, history, k, h, dt):
+    """Oquendo Eq. 4-6 and 10: the regime is set by the slip speed |v_t| at the contact
+    point (Eq. 4; the contact point of Eq. 3 is used by the caller).
+
+    Sliding, |v_t| > threshold: f = -mu_k |f_n| v_t/|v_t| (Eq. 5); the static spring
+    is emptied (its energy counts as dissipated).  Otherwise the grains stick
+    or roll, and static friction holds the contact point (Eq. 10).  Reading of Eq. 10:
+    the force "-F^t" that cancels the tangential pull is found, as in Cundall &
+    Strack, by a stiff spring kt with dashpot eta_t growing from zero with the
+    contact-point displacement, and holds while it stays below mu_s |f_n|; above it is
+    capped there (spring only, the dashpot acts below the cap), so the grains start
+    to slip and move on to the sliding regime once |v_t| exceeds the threshold.
+    Returns f_t (3), the energy dissipated [J], and 1.0 when sliding (else 0.0).
+    """
+    speed = math.sqrt(vtx * vtx + vty * vty + vtz * vtz)
+    if speed > threshold:
+        released = tangential_spring_energy(kt, history, k, h)
+        history[k, h] = 0.0
+        history[k, h + 1] = 0.0
+        history[k, h + 2] = 0.0
+        fx, fy, fz, work = tangential_coulomb_force(mu_k, fn, vtx, vty, vtz, dt)
+        return fx, fy, fz, work + released, 1.0
+    fx, fy, fz, lost = tangential_spring_force(kt, eta_t, mu_s, fn, 2, nx, ny, nz, vtx, vty,
+                                               vtz, history, k, h, dt)
+    return fx, fy, fz, lost, 0.0
