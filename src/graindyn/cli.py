@@ -1,4 +1,4 @@
-"""The graindyn command line: run, validate, info, plot.
+"""The graindyn command line: run, validate, info, plot, study.
 
 Exit codes: 0 success; 1 the simulation broke down (NaN, blow-up); 2 a bad config,
 run directory or checkpoint (one message, no traceback); 130/143 interrupted by
@@ -149,6 +149,28 @@ def plot(rundir: Annotated[pathlib.Path, typer.Argument(help="A finished run dir
     except (ConfigError, FileNotFoundError) as err:
         _fail(err)
     typer.echo("\n".join(str(p) for p in paths))
+
+
+study = typer.Typer(no_args_is_help=True, help="Studies that reproduce the documents' "
+                    "comparisons.")
+app.add_typer(study, name="study")
+
+
+@study.command("integrators")
+def study_integrators(
+    out: Annotated[pathlib.Path, typer.Option(
+        "--out", "-o", help="Folder for the figures and tables.")] = pathlib.Path(
+            "runs/study_integrators"),
+    quick: Annotated[bool, typer.Option(help="Fewer and shorter runs (about a minute).")]
+    = False,
+):
+    """Oquendo Fig. 2 (energy spread vs dt), Perez Fig. 3 (collision velocity error) and
+    the order-of-accuracy table of every integrator, as PNG, CSV and summary.json."""
+    from .studies.integrators import run_integrator_study
+
+    summary = run_integrator_study(out, quick=quick)
+    typer.echo(f"study written to {out} ({len(summary)} parts: "
+               + ", ".join(k for k in summary if k != "quick") + ")")
 
 
 def main():

@@ -100,3 +100,8 @@ def test_python_api_takes_the_same_models(small_config):
     config = Config.model_validate(small_config)
     with pytest.raises(ValueError):
         config.grains.count = -1  # assignments are validated too
+
+
+def test_study_command_is_wired():
+    result = runner.invoke(app, ["study", "integrators", "--help"])
+    assert result.exit_code == 0 and "order-of-accuracy" in result.output

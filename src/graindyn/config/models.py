@@ -101,6 +101,21 @@ class MaterialSection(Section):
                                  le=10)
     tangential_damping: float = _f(0.0, "tangential/normal dashpot ratio [-]; [0, 1e6]",
                                    ge=0, le=1e6)
+    slip_threshold: float = _f(1e-5, "Oquendo's contact-point speed below which grains "
+                               "stick or roll [m/s] (Eq. 4, 7); >= 0", ge=0)
+    gamma_nt: float = _f(0.0, "Oquendo's twisting damping gamma_nt [1/s] (Eq. 2); >= 0",
+                         ge=0)
+    alpha_n: float = _f(0.0, "Karrech's normal dissipation coefficient alpha [-] (Eq. 7); "
+                        ">= 0", ge=0)
+    alpha_t: float = _f(0.0, "Karrech's tangential dissipation coefficient alpha [-] "
+                        "(Eq. 7); >= 0", ge=0)
+    rolling_stiffness: float = _f(0.0, "EPSD rolling spring [N/m] (torque through R*^2); "
+                                  ">= 0", ge=0)
+    rolling_damping: float = _f(0.0, "EPSD rolling dashpot [kg/s]; >= 0", ge=0)
+    friction_twisting: float = _f(0.0, "twisting friction coefficient [-] (limit "
+                                  "mu_tw a |f_n|); [0, 10]", ge=0, le=10)
+    twisting_stiffness: float = _f(0.0, "EPSD twisting spring [N m/rad]; >= 0", ge=0)
+    twisting_damping: float = _f(0.0, "EPSD twisting dashpot [N m s]; >= 0", ge=0)
 
 
 class PairOverride(Section):
