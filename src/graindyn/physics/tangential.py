@@ -119,16 +119,17 @@ def tangential_mindlin_rescale(shear_eff, contact_radius, history, k, h):
     a_old = history[k, h + 3]
     history[k, h + 3] = contact_radius
     kt = tangential_mindlin_stiffness(shear_eff, contact_radius)
-    if a_old <= 0.0:
+    z2 = history[k, h] ** 2 + history[k, h + 1] ** 2 + history[k, h + 2] ** 2
+    if a_old <= 0.0 or z2 == 0.0:
         return kt, 0.0
-    before = tangential_spring_energy(tangential_mindlin_stiffness(shear_eff, a_old), history,
-                                      k, h)
     if contact_radius > a_old:
         s = a_old / contact_radius
         history[k, h] *= s
         history[k, h + 1] *= s
         history[k, h + 2] *= s
-    return kt, before - tangential_spring_energy(kt, history, k, h)
+        # kt_old |zeta|^2/2 - kt s^2 |zeta|^2/2 = 4 G* a_old |zeta|^2 (1 - s)
+        return kt, 4.0 * shear_eff * a_old * z2 * (1.0 - s)
+    return kt, 4.0 * shear_eff * (a_old - contact_radius) * z2
 
 
 @scalar
