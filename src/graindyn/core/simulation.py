@@ -149,6 +149,14 @@ class Simulation:
                                          self.integrator_history))
         self.counters[loop.HISTORY_STEPS] = 0
 
+    def reset_integrator_history(self):
+        """Start the integrator afresh from the current state at the next run: call it
+        after changing positions or velocities by hand between runs, which verlet,
+        leap_frog, beeman and the Gear schemes otherwise carry in their history (forces
+        and accelerations are evaluated again first)."""
+        self._allocate_integrator()
+        self.counters[loop.PRIMED] = 0
+
     def _start_derivatives(self, steps=8):
         """Exact start-up of the Gear schemes (integrators/gear.py): integrate ``steps``
         steps forward and as many back to the start, ``start_sweeps`` times, keeping the
