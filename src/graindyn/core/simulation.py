@@ -256,6 +256,8 @@ class Simulation:
             steps = int(math.ceil(time / self.dt - 1e-9))
         if steps < 0:
             raise ValueError(f"steps must be >= 0, got {steps}")
+        if self.counters[loop.HISTORY_STEPS] == 0 and steps > 0:
+            self._start_derivatives()
         self.counters[loop.COND_KIND] = until.kind if until is not None else loop.NO_CONDITION
         self.clock[loop.COND_VALUE] = until.value if until is not None else 0.0
         periods = [(trigger.period(self.dt), cb) for trigger, cb in every]
@@ -263,8 +265,6 @@ class Simulation:
             if not isinstance(trigger, Periodic):
                 raise TypeError("every= takes (Periodic, callback) pairs")
         end = self.step + steps
-        if self.counters[loop.HISTORY_STEPS] == 0 and steps > 0:
-            self._start_derivatives()
         try:
             while self.step < end:
                 n = min(end - self.step, max_chunk)
