@@ -1,6 +1,6 @@
 """graindyn side of the LAMMPS benchmark (../shared/bench/run_all.py --custom ...).
 
-    python benchmarks/lammps_bed.py STATE CYL SIZE E e DT SKIN WARM STEPS THREADS
+    python benchmarks/lammps_bed.py STATE CYL SIZE E e DT SKIN WARM STEPS THREADS [LAWS]
 
 Loads the settled bed STATE (x y z r per line, SI), builds the same container (CYL 0:
 box [0, SIZE]^2 with a floor at z = 0 and an open top; CYL 1: cylinder of radius SIZE
@@ -9,6 +9,11 @@ E and nu = 0.3, Mindlin tangential spring, tangential damping ratio 1, mu = 0.5,
 damping from restitution e, no damping limit, rho = 2650, g = 9.81), runs WARM untimed
 and STEPS timed steps on THREADS threads, and prints `wall <s>`, `zpp <contacts per
 grain>`, particle-steps/s and peak memory.
+
+LAWS (optional, not used by run_all.py) swaps the contact model, to time another law on
+the same bed: "normal,damping,tangential[,rolling[,twisting]]".  The linear and
+Walton-Braun springs then get kn = 2e3 N/m (near the Hertz stiffness of this bed),
+rolling and twisting coefficients 0.1, and EPSD springs of similar stiffness.
 """
 import resource
 import sys
@@ -18,9 +23,10 @@ import numpy as np
 
 
 def main(argv):
-    if len(argv) != 10:
+    if len(argv) not in (10, 11):
         sys.exit(__doc__)
-    state_file, cyl, size, young, rest, dt, skin, warm, steps, threads = argv
+    state_file, cyl, size, young, rest, dt, skin, warm, steps, threads = argv[:10]
+    laws = argv[10].split(",") if len(argv) == 11 else ["hertz", "tsuji", "mindlin"]
     import numba
 
     numba.set_num_threads(int(threads))
@@ -31,8 +37,11 @@ def main(argv):
     size = float(size)
     state = gd.State.create(data[:, :3], data[:, 3], 2650.0)
     grain = gd.Material("bed", density=2650.0, youngs_modulus=float(young), poisson_ratio=0.3,
-                        restitution=float(rest), friction_sliding=0.5, tangential_damping=1.0)
-    model = gd.ContactModel("hertz", "tsuji", "mindlin", limit_damping=False)
+                        restitution=float(rest), friction_sliding=0.5, tangential_damping=1.0,
+                        kn=2e3, kt=2e3 / 3, alpha_n=0.3, alpha_t=0.3, gamma_n=1e4,
+                        friction_rolling=0.1, friction_twisting=0.1, rolling_stiffness=1e3,
+                        twisting_stiffness=1e-5, gamma_nt=100.0)
+    model = gd.ContactModel(*laws, limit_damping=False)
     floor = gd.Plane((0, 0, 0), (0, 0, 1), name="floor")
     if int(cyl):
         walls = [gd.Cylinder((0, 0, 0), (0, 0, 1), size), floor]

@@ -133,3 +133,20 @@ def test_g2_exact_rotation_for_the_other_schemes():
     """The other schemes turn by the exact exponential: for a constant w the angle is
     exact to round-off."""
     assert _angle_error("velocity_verlet", 50) < 1e-12
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_2d_disks_stay_in_the_plane(name):
+    """2D: an oblique frictional collision of two disks keeps z, w_x, w_y and the
+    quaternion's x, y parts exactly zero, and spins the disks about z."""
+    state = gd.State.create(np.array([[0.0, 0.0], [0.0205, 0.004]]), np.full(2, 0.01), 1.0,
+                            dim=2, velocities=np.array([[0.5, 0.0], [-0.5, 0.0]]))
+    sim = gd.Simulation(state, [gd.Material(kn=1e3, kt=1e3, friction_sliding=0.5)],
+                        gd.ContactModel("hooke", "none", "cundall_strack"),
+                        gravity=(0.0, 0.0, 0.0), dt=1e-5, integrator=name, allow_large_dt=True)
+    sim.run(steps=1000)
+    s = sim.state
+    assert np.all(s.positions[:, 2] == 0.0) and np.all(s.velocities[:, 2] == 0.0)
+    assert np.all(s.angular_velocities[:, :2] == 0.0)
+    assert np.all(s.orientations[:, 1:3] == 0.0)
+    assert np.all(np.abs(s.angular_velocities[:, 2]) > 0.0)

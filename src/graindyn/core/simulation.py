@@ -156,6 +156,14 @@ class Simulation:
                                          self.integrator_history))
         self.counters[loop.HISTORY_STEPS] = 0
 
+    def reset_integrator_history(self):
+        """Start the integrator afresh from the current state at the next run: call it
+        after changing positions or velocities by hand between runs, which verlet,
+        leap_frog, beeman and the Gear schemes otherwise carry in their history (forces
+        and accelerations are evaluated again first)."""
+        self._allocate_integrator()
+        self.counters[loop.PRIMED] = 0
+
     def _start_derivatives(self, steps=8):
         """Exact start-up of the Gear schemes (integrators/gear.py): integrate ``steps``
         steps forward and as many back to the start, ``start_sweeps`` times, keeping the
@@ -261,6 +269,8 @@ class Simulation:
             steps = int(math.ceil(time / self.dt - 1e-9))
         if steps < 0:
             raise ValueError(f"steps must be >= 0, got {steps}")
+        if self.counters[loop.HISTORY_STEPS] == 0 and steps > 0:
+            self._start_derivatives()
         self.counters[loop.COND_KIND] = until.kind if until is not None else loop.NO_CONDITION
         self.clock[loop.COND_VALUE] = until.value if until is not None else 0.0
         periods = [(trigger.period(self.dt), cb) for trigger, cb in every]
@@ -268,8 +278,6 @@ class Simulation:
             if not isinstance(trigger, Periodic):
                 raise TypeError("every= takes (Periodic, callback) pairs")
         end = self.step + steps
-        if self.counters[loop.HISTORY_STEPS] == 0 and steps > 0:
-            self._start_derivatives()
         try:
             while self.step < end:
                 n = min(end - self.step, max_chunk)

@@ -147,6 +147,7 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
             params[a, b, _KT], params[a, b, _XT] * c, params[a, b, _MU], cap, 0, nx, ny, nz,
             vtx, vty, vtz, history, k, ht, dt)
     elif tangential == _MINDLIN or tangential == _KARRECH or tangential == _OQUENDO:
+        fresh = history[k, ht + 3] == 0.0      # no contact radius stored yet: first touch
         kt, lost_t = tangential_mindlin_rescale(params[a, b, _G], radius, history, k, ht)
         if tangential == _MINDLIN:
             ftx, fty, ftz, dissipated_t = tangential_spring_force(
@@ -160,7 +161,7 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
             threshold = params[a, b, _SLIP]
             ftx, fty, ftz, dissipated_t, sliding = tangential_oquendo_force(
                 kt, params[a, b, _XT] * c, params[a, b, _MU], params[a, b, _MU_S], threshold,
-                cap, nx, ny, nz, vtx, vty, vtz, history, k, ht, dt)
+                fresh, cap, nx, ny, nz, vtx, vty, vtz, history, k, ht, dt)
             # rolling (Oquendo Eq. 7-9): not sliding and R'_ij |w_r| above the threshold
             if sliding == 0.0 and r_roll * math.sqrt(wrx * wrx + wry * wry + wrz * wrz) \
                     > threshold:

@@ -98,7 +98,7 @@ LAWS = (
         "Karrech Eq. 6-7: Mindlin spring capped at mu f_n, dashpot 2 alpha_t sqrt(m* kt) "
         "outside the cap, Elata-Berryman unloading"),
     Law("tangential", "oquendo", ("shear_eff", "tangential_damping", "friction_sliding",
-                                  "friction_static", "friction_rolling", "slip_threshold"), 4,
+                                  "friction_static", "friction_rolling", "slip_threshold"), 7,
         "Oquendo Eq. 4-10: sliding mu_k, rolling tan(theta_r), static mu_s"),
     Law("rolling", "none", (), 0, "no rolling resistance"),
     Law("rolling", "constant", ("friction_rolling",), 0,

@@ -119,42 +119,62 @@ def tangential_mindlin_rescale(shear_eff, contact_radius, history, k, h):
     a_old = history[k, h + 3]
     history[k, h + 3] = contact_radius
     kt = tangential_mindlin_stiffness(shear_eff, contact_radius)
-    if a_old <= 0.0:
+    z2 = history[k, h] ** 2 + history[k, h + 1] ** 2 + history[k, h + 2] ** 2
+    if a_old <= 0.0 or z2 == 0.0:
         return kt, 0.0
-    before = tangential_spring_energy(tangential_mindlin_stiffness(shear_eff, a_old), history,
-                                      k, h)
     if contact_radius > a_old:
         s = a_old / contact_radius
         history[k, h] *= s
         history[k, h + 1] *= s
         history[k, h + 2] *= s
-    return kt, before - tangential_spring_energy(kt, history, k, h)
+        # kt_old |zeta|^2/2 - kt s^2 |zeta|^2/2 = 4 G* a_old |zeta|^2 (1 - s)
+        return kt, 4.0 * shear_eff * a_old * z2 * (1.0 - s)
+    return kt, 4.0 * shear_eff * (a_old - contact_radius) * z2
 
 
 @scalar
-def tangential_oquendo_force(kt, eta_t, mu_k, mu_s, threshold, fn, nx, ny, nz, vtx, vty,
-                             vtz, history, k, h, dt):
-    """Oquendo Eq. 4-6 and 10: the regime is set by the slip speed |v_t| at the contact
+def tangential_oquendo_force(kt, eta_t, mu_k, mu_s, threshold, fresh, fn, nx, ny, nz, vtx,
+                             vty, vtz, history, k, h, dt):
+    """Oquendo Eq. 4-6 and 10: the regime follows the slip velocity v_t at the contact
     point (Eq. 4; the contact point of Eq. 3 is used by the caller).
 
-    Sliding, |v_t| > threshold: f = -mu_k |f_n| v_t/|v_t| (Eq. 5); the static spring
-    is emptied (its energy counts as dissipated).  Otherwise the grains stick
-    or roll, and static friction holds the contact point (Eq. 10).  Reading of Eq. 10:
-    the force "-F^t" that cancels the tangential pull is found, as in Cundall &
-    Strack, by a stiff spring kt with dashpot eta_t growing from zero with the
-    contact-point displacement, and holds while it stays below mu_s |f_n|; above it is
-    capped there (spring only, the dashpot acts below the cap), so the grains start
-    to slip and move on to the sliding regime once |v_t| exceeds the threshold.
+    Sliding: f = -mu_k |f_n| v_t/|v_t| (Eq. 5).  A new contact (``fresh``) slides when
+    |v_t| > threshold; a sliding one keeps sliding while |v_t| > threshold and v_t
+    has not turned back against its previous direction (history[k, h+4:h+7] holds
+    the previous slip velocity while sliding, zero otherwise: in one step the slip
+    may jump across the threshold band).  Otherwise the grains stick or roll and
+    static friction holds the contact point (Eq. 10).  Reading of Eq. 10: the force
+    "-F^t" that cancels the tangential pull is found, as in Cundall & Strack, by a
+    stiff spring kt (history[k, h:h+3]) with dashpot eta_t that grows from zero with
+    the contact-point displacement, and holds while spring + dashpot stay below
+    mu_s |f_n|.  When they would exceed it the contact starts to slide: the sliding
+    force applies from that step on and the spring is emptied (its energy counts as
+    dissipated).  Once stuck, a contact stays stuck until that happens, even if the
+    contact point moves faster than the threshold while the spring catches it.
     Returns f_t (3), the energy dissipated [J], and 1.0 when sliding (else 0.0).
     """
+    px = history[k, h + 4]
+    py = history[k, h + 5]
+    pz = history[k, h + 6]
     speed = math.sqrt(vtx * vtx + vty * vty + vtz * vtz)
-    if speed > threshold:
-        released = tangential_spring_energy(kt, history, k, h)
-        history[k, h] = 0.0
-        history[k, h + 1] = 0.0
-        history[k, h + 2] = 0.0
-        fx, fy, fz, work = tangential_coulomb_force(mu_k, fn, vtx, vty, vtz, dt)
-        return fx, fy, fz, work + released, 1.0
-    fx, fy, fz, lost = tangential_spring_force(kt, eta_t, mu_s, fn, 2, nx, ny, nz, vtx, vty,
-                                               vtz, history, k, h, dt)
-    return fx, fy, fz, lost, 0.0
+    sliding = speed > threshold and (fresh or px * vtx + py * vty + pz * vtz > 0.0)
+    lost = tangential_spring_energy(kt, history, k, h)
+    if not sliding:
+        fx, fy, fz, spent = tangential_spring_force(kt, eta_t, mu_s, fn, 2, nx, ny, nz, vtx,
+                                                    vty, vtz, history, k, h, dt)
+        # static friction exceeded while the contact point moves: slide from this step
+        sliding = speed > 0.0 and fn > 0.0 and \
+            fx * fx + fy * fy + fz * fz >= (1.0 - 1e-12) * (mu_s * fn) ** 2
+        if not sliding:
+            history[k, h + 4] = 0.0
+            history[k, h + 5] = 0.0
+            history[k, h + 6] = 0.0
+            return fx, fy, fz, spent, 0.0
+    history[k, h] = 0.0
+    history[k, h + 1] = 0.0
+    history[k, h + 2] = 0.0
+    history[k, h + 4] = vtx
+    history[k, h + 5] = vty
+    history[k, h + 6] = vtz
+    fx, fy, fz, work = tangential_coulomb_force(mu_k, fn, vtx, vty, vtz, dt)
+    return fx, fy, fz, work + lost, 1.0
