@@ -28,8 +28,9 @@ from .output.progress import progress_bar
 from .output.rundir import RunDirectory, Series
 from .output.vtk import VtkSeries
 from .protocols.deposition import Deposition
+from .protocols.oedometer import Oedometer
 
-PROTOCOLS = {"deposition": Deposition}
+PROTOCOLS = {"deposition": Deposition, "oedometer": Oedometer}
 
 
 class RunInterrupted(RuntimeError):
@@ -150,7 +151,7 @@ class _Driver:
                 name = protocol.phases[self.state["phase"]]
                 phase = self.state["states"].setdefault(name, {})
                 self.rundir.log(f"phase {name} from step {sim.step}")
-                self.bar = bars.phase(name, sim, protocol.config.protocol.max_time)
+                self.bar = bars.phase(name, sim, protocol.phase_duration(name))
                 status = protocol.run_phase(name, sim, phase, every=self.every,
                                             between=self.between, max_chunk=chunk)
                 if status == "stopped":
@@ -170,6 +171,7 @@ class _Driver:
                         "particle_steps_per_s": sim.state.n * (sim.step - start_step)
                         / max(seconds, 1e-9), "threads": numba.get_num_threads()})
         self.rundir.write_results(results)
+        protocol.tables(self.rundir, results)
         if protocol.config.output.figures:
             draw(self.rundir, protocol, results)
         self.rundir.log("finished")

@@ -212,10 +212,10 @@ class IntegratorSection(Section):
         return name
 
 
-class DepositionProtocol(Section):
-    """Insert grains in the container and settle them under gravity."""
+class SettleFields(Section):
+    """How grains are inserted into the container and settled under gravity: the first
+    phase of every protocol."""
 
-    kind: Literal["deposition"] = "deposition"
     insertion: Literal["random", "lattice"] = _f(
         "random", "random non-overlapping insertion, or a loose lattice with random "
         "velocities (Perez)")
@@ -231,6 +231,42 @@ class DepositionProtocol(Section):
     threshold: float = _f(1e-6, "value of the equilibrium criterion; > 0", gt=0)
     max_time: float = _f(1.0, "longest settling time [s] of simulated time; (0, 1e4]",
                          gt=0, le=1e4)
+
+
+class DepositionProtocol(SettleFields):
+    """Insert grains in the container and settle them under gravity."""
+
+    kind: Literal["deposition"] = "deposition"
+
+
+class OedometerProtocol(SettleFields):
+    """The oedometric test of Oquendo et al. Sec. 4: settle, then load the sample through
+    a stress-controlled piston on a ladder p0, factor p0, ... up to p_max (optionally back
+    down), relaxing at each level; fit Bauer's law (Oquendo Eq. 19)."""
+
+    kind: Literal["oedometer"] = "oedometer"
+    p0: float = _f(12.5e3, "first vertical stress on the piston [Pa]; > 0", gt=0)
+    p_max: float = _f(3.2e6, "largest vertical stress [Pa]; >= p0", gt=0)
+    factor: float = _f(2.0, "stress ratio between levels [-] (2: doubling); (1, 10]", gt=1,
+                       le=10)
+    unload: bool = _f(False, "after p_max, unload by the same factor back to p0")
+    piston_material: str | None = _f(None, "piston material; default: walls.material")
+    servo_time: float = _f(1e-3, "servo time constant tau [s]: the piston closes its force "
+                           "error no faster than exp(-t/tau); (0, 10]", gt=0, le=10)
+    max_speed: float = _f(0.01, "largest piston speed [m/s]; (0, 10]", gt=0, le=10)
+    force_tolerance: float = _f(0.01, "a level is at rest when |F_piston - F_target| <= "
+                                "this fraction of F_target ...; (0, 0.5]", gt=0, le=0.5)
+    rest_ratio: float = _f(1e-4, "... and kinetic <= this fraction of the elastic energy of "
+                           "the contacts [-]; > 0", gt=0)
+    level_max_time: float = _f(0.05, "longest relaxation per level [s] of simulated time "
+                               "(the level is then recorded as not at rest); (0, 100]",
+                               gt=0, le=100)
+
+    @model_validator(mode="after")
+    def _ladder(self):
+        if self.p_max < self.p0:
+            raise ValueError(f"protocol.p_max = {self.p_max} Pa is below p0 = {self.p0} Pa")
+        return self
 
 
 class OutputSection(Section):
@@ -255,7 +291,8 @@ class Config(Section):
     contact: ContactSection = _f(ContactSection(), "contact law, one per mode")
     walls: WallsSection
     integrator: IntegratorSection = _f(IntegratorSection(), "time integration")
-    protocol: DepositionProtocol = _f(DepositionProtocol(), "what the run does")
+    protocol: DepositionProtocol | OedometerProtocol = _f(
+        DepositionProtocol(), "what the run does", discriminator="kind")
     output: OutputSection = _f(OutputSection(), "what the run writes")
 
     @model_validator(mode="after")
@@ -267,6 +304,8 @@ class Config(Section):
                 ("walls.material", self.walls.material)]
         used += [(f"walls.planes.{k}.material", p.material)
                  for k, p in enumerate(self.walls.planes) if p.material is not None]
+        if getattr(self.protocol, "piston_material", None) is not None:
+            used.append(("protocol.piston_material", self.protocol.piston_material))
         used += [(f"contact.overrides.{k}.materials", m)
                  for k, o in enumerate(self.contact.overrides) for m in o.materials]
         for where, name in used:
@@ -286,8 +325,12 @@ class Config(Section):
         if isinstance(box, CylinderContainer) and dim == 2:
             raise ValueError("walls.container: a cylinder needs run.dim = 3")
         if box is None:
-            raise ValueError("walls.container: the deposition protocol needs a container "
-                             "(box or cylinder)")
+            raise ValueError(f"walls.container: the {self.protocol.kind} protocol needs a "
+                             "container (box or cylinder)")
+        if self.protocol.kind == "oedometer" and (
+                dim != 3 or isinstance(box, BoxContainer) and not box.open_top):
+            raise ValueError("the oedometer protocol needs run.dim = 3 and a cylinder or an "
+                             "open-top box (the piston closes it)")
         phi = self.protocol.packing_fraction
         if self.protocol.insertion == "random" and phi >= RSA_JAMMING[dim]:
             raise ValueError(f"protocol.packing_fraction = {phi}: random insertion cannot "

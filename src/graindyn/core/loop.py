@@ -208,7 +208,8 @@ def run_chunk(model, params, grains, pairs, walls, periodic, clock, counters,
                          velocities, angular_velocities, orientations, accelerations,
                          angular_accelerations, fixed, integrator_history)
             if stage == 0:
-                walls_advance(motion_kind, motion, base, offset, velocity, clock[TIME], dt)
+                walls_advance(motion_kind, motion, base, offset, velocity, force, clock[TIME],
+                              dt)
             dn, dtan, power = evaluate_forces(model, params, grains, pairs, walls, periodic,
                                               gravity, dt)
             clock[DISS_N] += dn

@@ -323,6 +323,7 @@ class Simulation:
         w = self.walls
         arrays.update({"walls/offset": w.offset, "walls/base": w.base,
                        "walls/velocity": w.velocity, "walls/force": w.force,
+                       "walls/motion_kind": w.motion_kind, "walls/motion": w.motion,
                        "loop/reference_positions": self.reference_positions,
                        "loop/reference_offset": self.reference_offset,
                        "loop/max_overlap": self.max_overlap, "loop/clock": self.clock,
@@ -353,7 +354,7 @@ class Simulation:
 
         self.pairs = lists("pairs", _PAIR_ARRAYS)
         self.wall_contacts = lists("wall_contacts", _WALL_CONTACT_ARRAYS)
-        for k in ("offset", "base", "velocity", "force"):
+        for k in ("offset", "base", "velocity", "force", "motion_kind", "motion"):
             put(getattr(self.walls, k), f"walls/{k}")
         put(self.reference_positions, "loop/reference_positions")
         self.reference_offset = np.array(arrays["loop/reference_offset"])

@@ -4,9 +4,18 @@ from the same physics.contact.contact_force as grain pairs, with R_j = infinity.
 
 Kernel layout (``Walls.arrays``): kind (W,) 0 plane / 1 cylinder inside;
 geometry (W, 7) = origin (3), unit normal or axis (3), radius; motion_kind (W,)
-0 fixed / 1 constant velocity / 2 sinusoid; motion (W, 8) = unit direction (3),
-speed [m/s], amplitude [m], frequency [Hz], phase [rad], start time [s];
-offset (W, 3) [m] and velocity (W, 3) [m/s] of each wall (state).
+0 fixed / 1 constant velocity / 2 sinusoid / 3 servo; motion (W, 8) = unit direction
+(3), then speed [m/s], amplitude [m], frequency [Hz], phase [rad] (velocity, sinusoid)
+or target force [N], gain [m/(N s)], largest speed [m/s], unused (servo), and the start
+time [s]; offset (W, 3) [m] and velocity (W, 3) [m/s] of each wall (state).
+
+The servo is a stress-controlled wall: a velocity servo on the force the grains exert
+against its direction of motion u, from the previous force evaluation,
+    v = clamp(g (F_target - F), -v_max, v_max),   F = -force . u,
+so the force error decays as exp(-t K g) when the sample in front of the wall has
+stiffness K [N/m].  With g <= 1/(K tau) the wall closes the error no faster than the
+time constant tau and, having no inertia, cannot overshoot by itself; the protocol that
+uses it (protocols/oedometer.py) sets g from the stiffness of the wall's contacts.
 """
 import math
 from dataclasses import dataclass, field
@@ -16,7 +25,7 @@ import numpy as np
 from .._jit import scalar, kernel
 
 PLANE, CYLINDER = 0, 1
-FIXED, VELOCITY, SINUSOID = 0, 1, 2
+FIXED, VELOCITY, SINUSOID, SERVO = 0, 1, 2, 3
 
 
 def _unit(v, what):
@@ -31,7 +40,10 @@ class Motion:
     """Prescribed wall motion.
 
     kind "fixed"; "velocity": x(t) = x0 + velocity (t - start) [m/s];
-    "sinusoid": x(t) = x0 + direction amplitude (sin(2 pi f (t-start) + phase) - sin(phase)).
+    "sinusoid": x(t) = x0 + direction amplitude (sin(2 pi f (t-start) + phase) - sin(phase));
+    "servo": moves along ``direction`` (into the grains) at
+    clamp(gain (force - F), -max_speed, max_speed) where F [N] is the force the grains
+    exert against ``direction``, ``force`` the target [N], ``gain`` [m/(N s)].
     """
 
     kind: str = "fixed"
@@ -41,6 +53,9 @@ class Motion:
     frequency: float = 0.0
     phase: float = 0.0
     start: float = 0.0
+    force: float = 0.0
+    gain: float = 0.0
+    max_speed: float = 0.0
 
     def row(self):
         """(kind id, (8,) parameters) for the kernel."""
@@ -57,7 +72,15 @@ class Motion:
             u = _unit(self.direction, "motion direction")
             return SINUSOID, np.array([*u, 0.0, self.amplitude, self.frequency, self.phase,
                                        self.start])
-        raise ValueError(f"unknown wall motion {self.kind!r}; choose fixed, velocity, sinusoid")
+        if self.kind == "servo":
+            if self.force < 0 or self.gain < 0 or not self.max_speed > 0:
+                raise ValueError("servo motion needs force >= 0 [N], gain >= 0 [m/(N s)] and "
+                                 "max_speed > 0 [m/s]")
+            u = _unit(self.direction, "motion direction")
+            return SERVO, np.array([*u, self.force, self.gain, self.max_speed, 0.0,
+                                    self.start])
+        raise ValueError(f"unknown wall motion {self.kind!r}; choose fixed, velocity, "
+                         "sinusoid, servo")
 
 
 @dataclass
@@ -223,8 +246,9 @@ def wall_distance(kind, geometry, offset, w, x, y, z):
 
 
 @kernel
-def walls_advance(motion_kind, motion, base, offset, velocity, time, dt):
-    """Move prescribed walls from ``time`` to ``time + dt`` [s]."""
+def walls_advance(motion_kind, motion, base, offset, velocity, force, time, dt):
+    """Move prescribed and servo walls from ``time`` to ``time + dt`` [s]; ``force``
+    (W, 3) [N] is the force of the grains on each wall at the last evaluation."""
     t = time + dt
     for w in range(motion_kind.size):
         kind = motion_kind[w]
@@ -239,6 +263,13 @@ def walls_advance(motion_kind, motion, base, offset, velocity, time, dt):
                 offset[w, d] = base[w, d] + motion[w, d] * motion[w, 4] * (
                     math.sin(arg) - math.sin(motion[w, 6]))
                 velocity[w, d] = motion[w, d] * motion[w, 4] * omega * math.cos(arg)
+        elif kind == SERVO and t > motion[w, 7]:
+            push = -(force[w, 0] * motion[w, 0] + force[w, 1] * motion[w, 1]
+                     + force[w, 2] * motion[w, 2])
+            speed = min(max(motion[w, 4] * (motion[w, 3] - push), -motion[w, 5]), motion[w, 5])
+            for d in range(3):
+                velocity[w, d] = motion[w, d] * speed
+                offset[w, d] += velocity[w, d] * dt
         else:
             for d in range(3):
                 velocity[w, d] = 0.0

@@ -88,6 +88,14 @@ class Deposition:
             state["reached"] = status == "condition"
         return status
 
+    def phase_duration(self, name):
+        """Longest simulated time [s] of a phase (for the progress bar)."""
+        return self.config.protocol.max_time
+
+    def tables(self, rundir, results):
+        """Tables beside results.json: none for a deposition."""
+        return []
+
     def results(self, sim, states):
         """The settled sample's report."""
         return settle_report(sim, states["settle"]["reached"], self.criterion,
