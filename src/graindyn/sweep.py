@@ -48,6 +48,7 @@ from .config import ConfigError, load, validate
 from .config.models import Config
 from .config.sweep import SweepFile, load_sweep_file
 
+CONNECT_TIMEOUT = "20s"           # to a scheduler given by address
 REFERENCE = "reference"
 ERROR_FILE = "error.txt"
 RESULTS_FILE = "results.json"
@@ -419,7 +420,7 @@ def _dask_client(scheduler, workers, threads, jobs, client):
 
     if scheduler is not None:
         try:
-            remote = Client(scheduler, timeout="20s")
+            remote = Client(scheduler, timeout=CONNECT_TIMEOUT)
         except (OSError, TimeoutError, ValueError) as err:
             raise ConfigError(f"--scheduler {scheduler}: cannot connect: {err}") from None
         with remote:
