@@ -177,7 +177,7 @@ def sweep_command(
     2 a bad sweep file or config, 130 interrupted.
     """
     from .config import ConfigError
-    from .sweep import Sweep, SweepInterrupted, run as run_sweep
+    from .sweep import Sweep, SweepInterrupted, run as run_sweep, value_text
 
     if scheduler is not None and workers is not None:
         _fail("--workers sets the size of the local cluster: leave it out with --scheduler")
@@ -189,7 +189,8 @@ def sweep_command(
             typer.echo(f"{sweep_file}: ok, {len(plan.points)} points, {len(runs)} runs "
                        f"into {target}")
             for p in plan.points:
-                what = "reference" if p.parameter is None else f"{p.parameter} = {p.value!r}"
+                what = "reference" if p.parameter is None else \
+                    f"{p.parameter} = {value_text(p.value)}"
                 typer.echo(f"  {p.name:40s} {what}, seed {p.seed}"
                            + (" (the reference run)" if p.parameter and p.is_reference
                               else ""))

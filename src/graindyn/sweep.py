@@ -133,8 +133,8 @@ def _resolve(data, parameter):
     raise ValueError("empty parameter")
 
 
-def _value_text(value):
-    """A short, exact, filesystem-safe text of a value (0.2, 1.125e8, true, hertz)."""
+def value_text(value):
+    """A short, exact text of a value: 0.2, 1.125e8, 1e-6, true, hertz, 0,0,-1.62."""
     if isinstance(value, bool):
         text = "true" if value else "false"
     elif isinstance(value, int):
@@ -147,7 +147,7 @@ def _value_text(value):
                 value, unique=True, trim="-").split("e")
             text = f"{mantissa}e{int(exponent)}"
     elif isinstance(value, (list, tuple)):
-        text = ",".join(_value_text(v) for v in value)
+        text = ",".join(value_text(v) for v in value)
     else:
         text = str(value)
     return text
@@ -227,10 +227,10 @@ class Sweep:
                 problems.append(f"vary.{k}.parameter = {vary.parameter!r}: {err}")
                 continue
             base_value = container[key]
-            texts = []
+            folders = []
             for j, value in enumerate(vary.values):
-                text = _value_text(value)
-                texts.append(text + (f"-{j}" if text in texts else ""))
+                folder = safe_name(f"{labels[vary.parameter]}={value_text(value)}")
+                folders.append(folder if folder not in folders else f"{folder}-{j}")
             for j, value in enumerate(vary.values):
                 where = f"vary.{k} {vary.parameter} = {value!r}"
                 try:
@@ -243,11 +243,10 @@ class Sweep:
                     problems += [f"{where}: {line.strip()}" for line in lines]
                     continue
                 display = vary.display[j] if vary.display is not None else value
-                folder = safe_name(f"{labels[vary.parameter]}={texts[j]}")
                 for seed in seeds:
                     config = _with(data, vary.parameter, value, seed)
                     same = config.model_dump() == reference[seed]
-                    name = f"{REFERENCE}/seed-{seed}" if same else f"{folder}/seed-{seed}"
+                    name = f"{REFERENCE}/seed-{seed}" if same else f"{folders[j]}/seed-{seed}"
                     points.append(Point(vary.parameter, vary.label or labels[vary.parameter],
                                         value, display, base_value, seed, name, config))
         if problems:

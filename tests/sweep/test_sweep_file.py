@@ -190,3 +190,10 @@ def test_prepare_copies_the_files_and_refuses_a_foreign_run(tmp_path, tiny):
     tiny["run"]["threads"] = 2
     (folder / "config.toml").write_text(dumps(validate(tiny)))
     prepare(sweep, out)
+
+
+def test_values_with_the_same_safe_name_get_distinct_folders(tmp_path):
+    sweep = Sweep.load(write_sweep(tmp_path, {"seeds": [1], "vary": [
+        {"parameter": "run.name", "values": ["a b", "a_b", "a/b"]}]}))
+    assert [p.name for p in sweep.points[1:]] == [
+        "name=a_b/seed-1", "name=a_b-1/seed-1", "name=a_b-2/seed-1"]
