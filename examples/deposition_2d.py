@@ -4,25 +4,18 @@ friction): loose lattice with random velocities, settle, print, draw.
 
     python examples/deposition_2d.py [--grains 1000] [--out runs/deposition_2d]
 """
-import argparse
 import json
-import pathlib
 
 import numpy as np
 
 import graindyn as gd
 from graindyn.protocols.prepare import BoxRegion, lattice_insertion, settle
 
+import example_args  # examples/example_args.py, next to this script
+
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--grains", type=int, default=1000)
-    ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--out", default="runs/deposition_2d")
-    args = ap.parse_args()
-    out = pathlib.Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    rng = np.random.default_rng(args.seed)
+    args, out, rng = example_args.parse(__doc__, "deposition_2d")
 
     d_ave, spread = 1e-3, 0.2e-3                                   # [m]
     width = 40 * d_ave

@@ -3,9 +3,7 @@ until E_kin/E_pot <= 1e-6 (Karrech et al.), print the settled sample, draw a fig
 
     python examples/deposition_3d.py [--grains 1000] [--out runs/deposition_3d]
 """
-import argparse
 import json
-import pathlib
 import time
 
 import numpy as np
@@ -14,16 +12,11 @@ import graindyn as gd
 from graindyn.analysis.energy import energy_budget
 from graindyn.protocols.prepare import BoxRegion, random_insertion, settle
 
+import example_args  # examples/example_args.py, next to this script
+
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--grains", type=int, default=1000)
-    ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--out", default="runs/deposition_3d")
-    args = ap.parse_args()
-    out = pathlib.Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    rng = np.random.default_rng(args.seed)
+    args, out, rng = example_args.parse(__doc__, "deposition_3d")
 
     d_min, d_max, side = 0.85e-3, 1.15e-3, 10e-3               # [m]
     radii = gd.sample_radii(args.grains, "uniform", rng, d_min=d_min, d_max=d_max)

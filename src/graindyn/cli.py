@@ -1,4 +1,4 @@
-"""The graindyn command line: run, validate, info, plot, study.
+"""The graindyn command line: run, validate, info, plot, sweep, study.
 
 Exit codes: 0 success; 1 the simulation broke down (NaN, blow-up); 2 a bad config,
 run directory or checkpoint (one message, no traceback); 130/143 interrupted by
@@ -149,6 +149,62 @@ def plot(rundir: Annotated[pathlib.Path, typer.Argument(help="A finished run dir
     except (ConfigError, FileNotFoundError) as err:
         _fail(err)
     typer.echo("\n".join(str(p) for p in paths))
+
+
+@app.command("sweep")
+def sweep_command(
+    sweep_file: Annotated[pathlib.Path, typer.Argument(
+        help="TOML sweep file: base config, seeds, [[vary]] (see docs/sweeps.md).")],
+    out: Annotated[Optional[pathlib.Path], typer.Option(
+        "--out", "-o", help="Sweep directory [default: runs/<sweep file name>].")] = None,
+    scheduler: Annotated[Optional[str], typer.Option(
+        help="Address of a running Dask scheduler (tcp://host:8786) instead of a local "
+        "cluster; its workers need graindyn and a shared file system.")] = None,
+    workers: Annotated[Optional[int], typer.Option(
+        help="Worker processes of the local cluster [default: cores / threads].",
+        min=1)] = None,
+    threads_per_worker: Annotated[int, typer.Option(
+        help="numba threads of each run (each worker runs one point at a time).",
+        min=1)] = 1,
+    dry_run: Annotated[bool, typer.Option(
+        "--dry-run", help="Check the sweep and list its points, run nothing.")] = False,
+):
+    """Run a parameter sweep on Dask: every point (parameter, value, seed) in its own
+    run directory, then summary.csv, summary.json and the protocol's tables and figures.
+
+    Rerunning the same command skips finished points, resumes interrupted ones and
+    retries failed ones.  Exit codes: 0 all points finished, 1 some failed (listed),
+    2 a bad sweep file or config, 130 interrupted.
+    """
+    from .config import ConfigError
+    from .sweep import Sweep, SweepInterrupted, run as run_sweep, value_text
+
+    if scheduler is not None and workers is not None:
+        _fail("--workers sets the size of the local cluster: leave it out with --scheduler")
+    try:
+        plan = Sweep.load(sweep_file)
+        target = out or pathlib.Path("runs") / sweep_file.stem
+        if dry_run:
+            runs = {p.name for p in plan.runs}
+            typer.echo(f"{sweep_file}: ok, {len(plan.points)} points, {len(runs)} runs "
+                       f"into {target}")
+            for p in plan.points:
+                what = "reference" if p.parameter is None else \
+                    f"{p.parameter} = {value_text(p.value)}"
+                typer.echo(f"  {p.name:40s} {what}, seed {p.seed}"
+                           + (" (the reference run)" if p.parameter and p.is_reference
+                              else ""))
+            return
+        report = run_sweep(plan, target, scheduler=scheduler, workers=workers,
+                           threads_per_worker=threads_per_worker)
+    except (ConfigError, FileExistsError) as err:
+        _fail(err)
+    except SweepInterrupted as err:
+        _fail(err, 130)
+    except KeyboardInterrupt:
+        _fail("interrupted: rerun the same command to continue", 130)
+    if report.exit_code:
+        raise typer.Exit(report.exit_code)
 
 
 study = typer.Typer(no_args_is_help=True, help="Studies that reproduce the documents' "

@@ -1,1 +1,1 @@
-"""Observables: energies, packing, coordination, stresses."""
+"""Observables: energies, packing, coordination, stresses; Bauer compression-law fits."""

@@ -172,6 +172,13 @@ def wall_forces(model, params, positions, velocities, angular_velocities, radii,
 
 
 @scalar
+def _add_contact(fx, fy, fz, tx, ty, tz, force, sign, torque, k):
+    """The running force and torque sums plus sign * force[k] and torque[k]."""
+    return (fx + sign * force[k, 0], fy + sign * force[k, 1], fz + sign * force[k, 2],
+            tx + torque[k, 0], ty + torque[k, 1], tz + torque[k, 2])
+
+
+@scalar
 def gather_grain(i, mass, gravity, start, reverse_start, reverse_pairs, pair_force,
                  pair_torque_i, pair_torque_j, wall_start, wall_force, wall_torque):
     """Force [N] and torque [N m] on grain i: m_i g plus its pair contacts (as first
@@ -179,29 +186,14 @@ def gather_grain(i, mass, gravity, start, reverse_start, reverse_pairs, pair_for
     fx = mass * gravity[0]
     fy = mass * gravity[1]
     fz = mass * gravity[2]
-    tx = 0.0
-    ty = 0.0
-    tz = 0.0
+    tx = ty = tz = 0.0
     for k in range(start[i], start[i + 1]):
-        fx += pair_force[k, 0]
-        fy += pair_force[k, 1]
-        fz += pair_force[k, 2]
-        tx += pair_torque_i[k, 0]
-        ty += pair_torque_i[k, 1]
-        tz += pair_torque_i[k, 2]
+        fx, fy, fz, tx, ty, tz = _add_contact(fx, fy, fz, tx, ty, tz, pair_force, 1.0,
+                                              pair_torque_i, k)
     for s in range(reverse_start[i], reverse_start[i + 1]):
-        k = reverse_pairs[s]
-        fx -= pair_force[k, 0]
-        fy -= pair_force[k, 1]
-        fz -= pair_force[k, 2]
-        tx += pair_torque_j[k, 0]
-        ty += pair_torque_j[k, 1]
-        tz += pair_torque_j[k, 2]
+        fx, fy, fz, tx, ty, tz = _add_contact(fx, fy, fz, tx, ty, tz, pair_force, -1.0,
+                                              pair_torque_j, reverse_pairs[s])
     for q in range(wall_start[i], wall_start[i + 1]):
-        fx += wall_force[q, 0]
-        fy += wall_force[q, 1]
-        fz += wall_force[q, 2]
-        tx += wall_torque[q, 0]
-        ty += wall_torque[q, 1]
-        tz += wall_torque[q, 2]
+        fx, fy, fz, tx, ty, tz = _add_contact(fx, fy, fz, tx, ty, tz, wall_force, 1.0,
+                                              wall_torque, q)
     return fx, fy, fz, tx, ty, tz

@@ -131,9 +131,7 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
     cap = abs(fn)  # the friction limit uses |f_n| when the dashpot pulls (as LAMMPS)
     tangential = model[2]
     ht = model[_H_TANGENTIAL]
-    mx = 0.0
-    my = 0.0
-    mz = 0.0
+    mx = my = mz = 0.0
     # rolling part of the relative rotation (tangent-plane component) and twist rate
     wn = wx * nx + wy * ny + wz * nz
     wrx = wx - wn * nx
@@ -170,10 +168,7 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
                 dissipated_t += lost_r
         dissipated_t += lost_t
     else:
-        ftx = 0.0
-        fty = 0.0
-        ftz = 0.0
-        dissipated_t = 0.0
+        ftx = fty = ftz = dissipated_t = 0.0
     rolling = model[3]
     if rolling == _ROLL_CONSTANT:
         rx, ry, rz, lost_r = rolling_constant_torque(params[a, b, _MU_R] * r_eff * cap, wrx,
@@ -184,10 +179,7 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
             params[a, b, _K_ROLL] * r2, params[a, b, _C_ROLL] * r2, params[a, b, _MU_R] * r_eff,
             cap, 2, nx, ny, nz, wrx, wry, wrz, history, k, model[_H_ROLLING], dt)
     else:
-        rx = 0.0
-        ry = 0.0
-        rz = 0.0
-        lost_r = 0.0
+        rx = ry = rz = lost_r = 0.0
     twisting = model[4]
     if twisting == _TWIST_OQUENDO:
         tw, lost_w = twisting_oquendo_torque(params[a, b, _GAMMA_NT], m_eff, r_eff, overlap, wn,
@@ -199,8 +191,7 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
                                             params[a, b, _MU_TW] * radius * cap, wn, history, k,
                                             model[_H_TWISTING], dt)
     else:
-        tw = 0.0
-        lost_w = 0.0
+        tw = lost_w = 0.0
     return (fn, ftx, fty, ftz, mx + rx + tw * nx, my + ry + tw * ny, mz + rz + tw * nz,
             dissipated_n, dissipated_t + lost_r + lost_w)
 

@@ -178,22 +178,24 @@ def effective_modulus(E1, nu1, E2, nu2):
     return math.inf if inv == 0.0 else 1.0 / inv
 
 
+def _reduced(names, x1, x2, both_infinite):
+    """1/(1/x1 + 1/x2) of two positive values, one of which may be infinite."""
+    x1 = _positive(names[0], x1, allow_inf=True)
+    x2 = _positive(names[1], x2, allow_inf=True)
+    if math.isinf(x1) and math.isinf(x2):
+        raise ValueError(both_infinite)
+    return 1.0 / (1.0 / x1 + 1.0 / x2)
+
+
 def effective_radius(r1, r2):
     """Effective radius R* [m]: 1/R* = 1/r1 + 1/r2; r2 = inf for a plane (R* = r1)."""
-    r1 = _positive("r1", r1, allow_inf=True)
-    r2 = _positive("r2", r2, allow_inf=True)
-    if math.isinf(r1) and math.isinf(r2):
-        raise ValueError("effective_radius: two planes have no finite contact radius")
-    return 1.0 / (1.0 / r1 + 1.0 / r2)
+    return _reduced(("r1", "r2"), r1, r2,
+                    "effective_radius: two planes have no finite contact radius")
 
 
 def effective_mass(m1, m2):
     """Effective mass m* [kg]: 1/m* = 1/m1 + 1/m2; m2 = inf for a fixed wall (m* = m1)."""
-    m1 = _positive("m1", m1, allow_inf=True)
-    m2 = _positive("m2", m2, allow_inf=True)
-    if math.isinf(m1) and math.isinf(m2):
-        raise ValueError("effective_mass: two infinite masses cannot collide")
-    return 1.0 / (1.0 / m1 + 1.0 / m2)
+    return _reduced(("m1", "m2"), m1, m2, "effective_mass: two infinite masses cannot collide")
 
 
 def _hertz_args(m_eff, r_eff, e_eff, v):

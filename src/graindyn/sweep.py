@@ -1,0 +1,726 @@
+"""Parameter sweeps on Dask: one parameter at a time around a reference config, several
+seeds per point, each run in its own run directory, one summary at the end.
+
+    sweep = Sweep.load("examples/oedometer_sweep.toml")   # validates every point
+    report = run(sweep, "runs/oedometer_sweep")            # LocalCluster by default
+    report.exit_code                                       # 0 all finished, 1 some failed
+
+A *point* is (parameter, value, seed); the reference points (the base config unchanged)
+are part of every sweep.  A point whose value equals the base value is the reference
+run itself (not computed twice).  Layout of the sweep directory:
+
+    sweep.toml, base.toml      verbatim copies of the sweep file and the base config
+    points.json                every point: parameter, value, seed, run directory
+    reference/seed-1/          one run directory per run (``graindyn run`` layout)
+    friction_sliding=0.2/seed-1/
+    summary.csv, summary.json  one row per point; mean and std over seeds per value
+    (protocol tables and figures, e.g. bauer_vertical.md, figures/hs_eta_vertical.png)
+
+Running the same command again skips finished runs (results.json present), resumes the
+interrupted ones from their last checkpoint and retries the failed ones (error.txt).
+
+The summary is pluggable per protocol: the protocol class
+(``runner.PROTOCOLS[config.protocol.kind]``) may define
+``summarize_sweep(sweep_dir, points)``, or ``SUMMARIES`` below names a function for the
+protocol kind; it gets the sweep directory and the collected points (``Point`` with
+``status`` and ``results``) and returns the paths it wrote.
+"""
+import contextlib
+import copy
+import csv
+import dataclasses
+import importlib
+import json
+import math
+import os
+import pathlib
+import re
+import shutil
+import time
+import traceback
+import uuid
+from typing import Any
+
+import numpy as np
+from distributed.diagnostics.plugin import WorkerPlugin
+
+from .config import ConfigError, load, validate
+from .config.models import Config
+from .config.sweep import SweepFile, load_sweep_file
+
+CONNECT_TIMEOUT = "20s"           # to a scheduler given by address
+REFERENCE = "reference"
+ERROR_FILE = "error.txt"
+RESULTS_FILE = "results.json"
+
+# protocol kind -> "module:function" of its sweep summary (used when the protocol class
+# has no summarize_sweep of its own); imported only when a sweep of that kind finishes
+SUMMARIES = {"oedometer": "graindyn.studies.bauer_sweep:summarize_sweep"}
+
+
+class SweepInterrupted(RuntimeError):
+    """The sweep was stopped (Ctrl-C); rerunning the same command continues it."""
+
+
+@dataclasses.dataclass
+class Point:
+    """One point of a sweep: the base config with ``parameter`` set to ``value``, run
+    with ``seed``.  Reference points have ``parameter`` None.  ``name`` is the run
+    directory relative to the sweep directory; points whose value equals the base value
+    share the reference run's ``name``."""
+
+    parameter: str | None
+    label: str
+    value: Any
+    display: Any
+    base_value: Any
+    seed: int
+    name: str
+    config: Config = dataclasses.field(repr=False, compare=False)
+    status: str = "pending"           # pending | finished | failed (after collect)
+    results: dict | None = dataclasses.field(default=None, repr=False, compare=False)
+    error: str | None = None
+    directory: pathlib.Path | None = None
+
+    @property
+    def is_reference(self):
+        """True for the points whose run is the reference run."""
+        return self.name.split("/")[0] == REFERENCE
+
+    @property
+    def group(self):
+        """(parameter, value key) shared by the seeds of one sweep value."""
+        return (self.parameter, json.dumps(self.value))
+
+
+# ---------------------------------------------------------------- names and paths
+def _resolve(data, parameter):
+    """(container, key) of the dotted ``parameter`` in the config dict ``data``; list
+    items are found by their ``name`` (materials.sand) or index.  ValueError saying
+    where the path goes wrong."""
+    node, where = data, []
+    parts = parameter.split(".")
+    for k, part in enumerate(parts):
+        here = ".".join(where) or "the config"
+        if isinstance(node, dict):
+            if part not in node:
+                raise ValueError(f"{here} has no field {part!r}; its fields are "
+                                 f"{', '.join(sorted(node))}")
+            key = part
+        elif isinstance(node, list) and node and all(isinstance(x, dict) for x in node):
+            names = [x.get("name") for x in node]
+            if part in names:
+                key = names.index(part)
+            elif part.isdigit() and int(part) < len(node):
+                key = int(part)
+            else:
+                known = [n for n in names if n is not None]
+                raise ValueError(f"{here} has no item {part!r}; items are "
+                                 + (", ".join(known) if known else f"0..{len(node) - 1}"))
+        else:
+            raise ValueError(f"{here} is a value, not a section: it has no {part!r}")
+        if k == len(parts) - 1:
+            target = node[key]
+            if isinstance(target, dict) or (isinstance(target, list) and target
+                                            and isinstance(target[0], dict)):
+                raise ValueError(f"{parameter} is a section, not a value: name one of its "
+                                 "fields")
+            return node, key
+        where.append(part)
+        node = node[key]
+        if node is None:
+            raise ValueError(f"{'.'.join(where)} is not set in the base config")
+    raise ValueError("empty parameter")
+
+
+def value_text(value):
+    """A short, exact text of a value: 0.2, 1.125e8, 1e-6, true, hertz, 0,0,-1.62."""
+    if isinstance(value, bool):
+        text = "true" if value else "false"
+    elif isinstance(value, int):
+        text = str(value)
+    elif isinstance(value, float):
+        if value == 0 or 1e-4 <= abs(value) < 1e6:
+            text = np.format_float_positional(value, unique=True, trim="-")
+        else:
+            mantissa, exponent = np.format_float_scientific(
+                value, unique=True, trim="-").split("e")
+            text = f"{mantissa}e{int(exponent)}"
+    elif isinstance(value, (list, tuple)):
+        text = ",".join(value_text(v) for v in value)
+    else:
+        text = str(value)
+    return text
+
+
+def safe_name(text, limit=80):
+    """``text`` with every character outside [A-Za-z0-9._,=+-] replaced by '_'."""
+    text = re.sub(r"[^A-Za-z0-9._,=+\-]", "_", text).strip(".") or "_"
+    if len(text) > limit:
+        text = text[:limit - 9] + "~" + uuid.uuid5(uuid.NAMESPACE_URL, text).hex[:8]
+    return text
+
+
+def short_names(parameters):
+    """The shortest trailing part of each dotted path that tells it from the others."""
+    split = {p: p.split(".") for p in parameters}
+    names = {}
+    for p, parts in split.items():
+        k = 1
+        while k < len(parts) and any(q != p and split[q][-k:] == parts[-k:] for q in split):
+            k += 1
+        names[p] = ".".join(parts[-k:])
+    return names
+
+
+# ---------------------------------------------------------------- the sweep
+class Sweep:
+    """A validated sweep: the base config, the seeds and every point with its Config.
+
+    ``Sweep.load(path)`` reads the sweep file and the base config and builds and checks
+    every point's Config before anything runs; ConfigError lists every problem (each
+    invalid value with its point)."""
+
+    def __init__(self, path, spec: SweepFile, base_path, base: Config, points):
+        self.path = pathlib.Path(path)
+        self.spec = spec
+        self.base_path = pathlib.Path(base_path)
+        self.base = base
+        self.points = points
+
+    @property
+    def runs(self):
+        """The distinct runs (one per run directory), reference first."""
+        seen, runs = set(), []
+        for p in self.points:
+            if p.name not in seen:
+                seen.add(p.name)
+                runs.append(p)
+        return runs
+
+    @classmethod
+    def load(cls, path):
+        from .runner import check
+
+        path = pathlib.Path(path)
+        spec = load_sweep_file(path)
+        base_path = path.parent / spec.base
+        if not base_path.is_file():
+            raise ConfigError(f"{path}: base = {spec.base!r}: no such config file "
+                              f"({base_path})")
+        base = load(base_path)
+        try:
+            check(base)
+        except ConfigError as err:
+            raise ConfigError(f"{base_path}: {err}") from None
+        seeds = spec.seeds if spec.seeds is not None else [base.run.seed]
+        data = base.model_dump(mode="json")
+        problems = []
+        points = [Point(None, REFERENCE, None, None, None, seed, f"{REFERENCE}/seed-{seed}",
+                        _with(data, None, None, seed)) for seed in seeds]
+        reference = {seed: p.config.model_dump() for seed, p in zip(seeds, points)}
+        labels = short_names([v.parameter for v in spec.vary])
+        for k, vary in enumerate(spec.vary):
+            try:
+                container, key = _resolve(data, vary.parameter)
+            except ValueError as err:
+                problems.append(f"vary.{k}.parameter = {vary.parameter!r}: {err}")
+                continue
+            base_value = container[key]
+            folders = []
+            for j, value in enumerate(vary.values):
+                folder = safe_name(f"{labels[vary.parameter]}={value_text(value)}")
+                folders.append(folder if folder not in folders else f"{folder}-{j}")
+            for j, value in enumerate(vary.values):
+                where = f"vary.{k} {vary.parameter} = {value!r}"
+                try:
+                    config = _with(data, vary.parameter, value, seeds[0])
+                    check(config)
+                except ConfigError as err:
+                    lines = str(err).splitlines()
+                    if lines[0].endswith("problem(s)"):
+                        lines = lines[1:]
+                    problems += [f"{where}: {line.strip()}" for line in lines]
+                    continue
+                display = vary.display[j] if vary.display is not None else value
+                for seed in seeds:
+                    config = _with(data, vary.parameter, value, seed)
+                    same = config.model_dump() == reference[seed]
+                    name = f"{REFERENCE}/seed-{seed}" if same else f"{folders[j]}/seed-{seed}"
+                    points.append(Point(vary.parameter, vary.label or labels[vary.parameter],
+                                        value, display, base_value, seed, name, config))
+        if problems:
+            raise ConfigError(f"{path}: {len(problems)} problem(s)\n  "
+                              + "\n  ".join(problems))
+        return cls(path, spec, base_path, base, points)
+
+
+def _with(data, parameter, value, seed):
+    """The Config of ``data`` with ``parameter`` = ``value`` and run.seed = ``seed``."""
+    data = copy.deepcopy(data)
+    if parameter is not None:
+        container, key = _resolve(data, parameter)
+        container[key] = value
+    data["run"]["seed"] = seed
+    source = "point" if parameter is None else f"point {parameter} = {value!r}"
+    return validate(data, source)
+
+
+# ---------------------------------------------------------------- one point (a task)
+def finished(directory):
+    """The results of the finished run in ``directory``, or None (no results.json, or
+    one cut short by a kill: that run resumes from its final checkpoint)."""
+    try:
+        results = json.loads((pathlib.Path(directory) / RESULTS_FILE).read_text())
+    except (OSError, ValueError):
+        return None
+    return results if isinstance(results, dict) else None
+
+
+def _quiet(*args, **kwargs):
+    pass
+
+
+def _has_checkpoint(directory):
+    from .output import checkpoint
+
+    folder = pathlib.Path(directory) / "checkpoints"
+    return (folder / checkpoint.LATEST).exists() or (folder / checkpoint.PREVIOUS).exists()
+
+
+def _clear(directory):
+    """Remove what a run left before its first checkpoint (nothing worth keeping)."""
+    directory = pathlib.Path(directory)
+    if not directory.exists():
+        return
+    names = {p.name for p in directory.iterdir()}
+    if names - {"config.toml", "meta.json", "run.log", "series.csv", "vtk", "figures",
+                "checkpoints", ERROR_FILE}:
+        raise FileExistsError(f"{directory} holds files that are not a graindyn run: "
+                              "move them away or choose another --out")
+    shutil.rmtree(directory)
+
+
+def run_point(config: Config, directory, threads=1):
+    """Run one point in ``directory`` (the Dask task): skip it if results.json exists,
+    resume it if it has a checkpoint, start it otherwise.  numba uses ``threads``
+    threads.  Never raises: a failure writes error.txt (message and traceback) and is
+    returned as {"status": "failed", "error": message}."""
+    from . import runner
+    from .output.checkpoint import CheckpointError
+
+    directory = pathlib.Path(directory)
+    start = time.perf_counter()
+    if finished(directory):
+        return {"status": "finished", "how": "finished earlier", "seconds": 0.0}
+    how = "started"
+    try:
+        (directory / ERROR_FILE).unlink(missing_ok=True)
+        if _has_checkpoint(directory):
+            try:
+                runner.resume(directory, show_progress=False, echo=_quiet, threads=threads)
+                how = "resumed"
+            except CheckpointError:
+                how = "restarted (its checkpoints were unusable)"
+        if how != "resumed":
+            _clear(directory)
+            config = config.model_copy(deep=True)
+            config.run.threads = threads
+            runner.execute(config, directory, show_progress=False, echo=_quiet)
+    except Exception as err:  # any failure of one point is recorded, never propagated
+        message = f"{type(err).__name__}: {err}"
+        directory.mkdir(parents=True, exist_ok=True)
+        (directory / ERROR_FILE).write_text(f"{message}\n\n{traceback.format_exc()}")
+        return {"status": "failed", "how": how, "error": message,
+                "seconds": time.perf_counter() - start}
+    return {"status": "finished", "how": how, "seconds": time.perf_counter() - start}
+
+
+# ---------------------------------------------------------------- running
+def _stored_differences(point, stored):
+    """Fields where the run stored in a point's directory differs from the point's
+    config, leaving out what the runner fills in (dt, skin) and the threads."""
+    a, b = point.config.model_dump(mode="json"), stored.model_dump(mode="json")
+    a["run"].pop("threads"), b["run"].pop("threads")
+    for name in ("dt", "skin"):
+        if a["integrator"][name] is None:
+            a["integrator"].pop(name), b["integrator"].pop(name)
+    out = []
+
+    def walk(x, y, where):
+        if isinstance(x, dict) and isinstance(y, dict):
+            for key in sorted(set(x) | set(y)):
+                walk(x.get(key), y.get(key), f"{where}.{key}" if where else key)
+        elif isinstance(x, list) and isinstance(y, list) and len(x) == len(y):
+            for k, (u, v) in enumerate(zip(x, y)):
+                walk(u, v, f"{where}.{k}")
+        elif x != y:
+            out.append(f"{where}: {y!r} there, {x!r} in the sweep")
+    walk(a, b, "")
+    return out
+
+
+def prepare(sweep: Sweep, out):
+    """Create the sweep directory (copies of the sweep file and base config, points.json)
+    and check that the runs already there belong to this sweep; ConfigError if not."""
+    out = pathlib.Path(out)
+    problems = []
+    for p in sweep.runs:
+        stored = out / p.name / "config.toml"
+        if stored.exists():
+            try:
+                differences = _stored_differences(p, load(stored))
+            except ConfigError as err:
+                differences = [str(err).splitlines()[0]]
+            if differences:
+                problems.append(f"{out / p.name} holds a run of another config ("
+                                + "; ".join(differences[:3]) + ")")
+    if problems:
+        raise ConfigError(f"{out}: {len(problems)} run director(ies) do not match the sweep "
+                          "(remove them or choose another --out):\n  " + "\n  ".join(problems))
+    out.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(sweep.path, out / "sweep.toml")
+    shutil.copyfile(sweep.base_path, out / "base.toml")
+    (out / "points.json").write_text(json.dumps(
+        [{"parameter": p.parameter, "label": p.label, "value": p.value,
+          "display": p.display, "seed": p.seed, "directory": p.name} for p in sweep.points],
+        indent=1))
+
+
+def _local_cores():
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:
+        return os.cpu_count() or 1
+
+
+class _IgnoreInterrupt(WorkerPlugin):
+    """Worker plugin of the local cluster: Ctrl-C in the terminal reaches every process
+    of the group; the workers leave it to the sweep command, which stops them."""
+
+    def setup(self, worker):
+        import signal
+        import threading
+
+        if threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+@contextlib.contextmanager
+def _dask_client(scheduler, workers, threads, jobs, client):
+    """A Client: the one given, one connected to ``scheduler``, or a LocalCluster of
+    processes (one point at a time per worker).  Yields (client, description)."""
+    if client is not None:
+        yield client, "the given Dask client"
+        return
+    import logging
+
+    from distributed import Client, LocalCluster
+
+    if scheduler is not None:
+        try:
+            remote = Client(scheduler, timeout=CONNECT_TIMEOUT)
+        except (OSError, TimeoutError, ValueError) as err:
+            raise ConfigError(f"--scheduler {scheduler}: cannot connect: {err}") from None
+        with remote:
+            yield remote, f"the Dask scheduler at {scheduler}"
+        return
+    n = workers or max(1, _local_cores() // threads)
+    n = max(1, min(n, jobs))
+    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                      dashboard_address=":0", silence_logs=logging.ERROR) as cluster, \
+            Client(cluster) as c:
+        c.register_plugin(_IgnoreInterrupt(), name="graindyn-ignore-sigint")
+        try:
+            yield c, (f"a local Dask cluster of {n} worker process(es) x {threads} "
+                      "thread(s)" + (f", dashboard {c.dashboard_link}"
+                                     if cluster.dashboard_link else ""))
+        except BaseException:
+            _kill_workers(cluster)
+            raise
+
+
+def _kill_workers(cluster):
+    """Stop the local workers now, running points and all: their checkpoints are written
+    atomically, so each keeps its last one (a graceful close would wait for them)."""
+    import signal
+
+    for nanny in list(cluster.workers.values()):
+        pid = getattr(nanny, "pid", None)
+        if pid:
+            with contextlib.suppress(Exception):
+                nanny.close_gracefully(reason="graindyn sweep interrupted")
+            with contextlib.suppress(OSError):
+                os.kill(pid, signal.SIGKILL)
+
+
+def _printer():
+    """Lines to the terminal through rich (plain text when not a terminal)."""
+    from rich.console import Console
+
+    def echo(text, style=None):
+        Console(highlight=False).print(text, style=style, markup=False, soft_wrap=True)
+    return echo
+
+
+@dataclasses.dataclass
+class Report:
+    """What a sweep did: the runs by status, the summary files, and the exit code."""
+
+    directory: pathlib.Path
+    points: list
+    runs: list
+    paths: list
+    summary_error: str | None = None
+
+    @property
+    def finished(self):
+        return [p for p in self.runs if p.status == "finished"]
+
+    @property
+    def failed(self):
+        return [p for p in self.runs if p.status == "failed"]
+
+    @property
+    def pending(self):
+        return [p for p in self.runs if p.status == "pending"]
+
+    @property
+    def exit_code(self):
+        """0 when every run finished and the summary was written, 1 otherwise."""
+        return 0 if len(self.finished) == len(self.runs) and not self.summary_error else 1
+
+
+def run(sweep: Sweep, out, scheduler=None, workers=None, threads_per_worker=1,
+        client=None, echo=None):
+    """Run every unfinished point of ``sweep`` into the sweep directory ``out`` on Dask,
+    then write the summary; returns the Report.  ``client`` (a distributed.Client) wins
+    over ``scheduler`` (an address), which wins over a LocalCluster of ``workers``
+    processes.  ``echo(text)`` gets one line per finished point (default: rich).
+    SweepInterrupted on Ctrl-C (after the running points were cancelled)."""
+    import numba
+
+    say = _printer() if echo is None else (lambda text, style=None: echo(text))
+    out = pathlib.Path(out).resolve()
+    threads = int(threads_per_worker)
+    if threads < 1:
+        raise ConfigError(f"--threads-per-worker = {threads}: must be >= 1")
+    if scheduler is None and client is None and threads > numba.config.NUMBA_NUM_THREADS:
+        raise ConfigError(f"--threads-per-worker = {threads}: this machine offers at most "
+                          f"{numba.config.NUMBA_NUM_THREADS}")
+    prepare(sweep, out)
+    runs = sweep.runs
+    todo = [p for p in runs if not finished(out / p.name)]
+    say(f"sweep {sweep.path.name}: {len(runs)} runs ({len(sweep.points)} points), "
+        f"{len(runs) - len(todo)} finished earlier, {len(todo)} to run, into {out}")
+    if todo:
+        with _dask_client(scheduler, workers, threads, len(todo), client) as (c, where):
+            say(f"running on {where}")
+            _submit_all(c, todo, out, threads, say)
+    return finish(sweep, out, say)
+
+
+def _submit_all(client, todo, out, threads, say):
+    from distributed import as_completed
+
+    token = uuid.uuid4().hex[:8]
+    futures = {}
+    for k, p in enumerate(todo):
+        future = client.submit(run_point, p.config, str(out / p.name), threads,
+                               key=f"graindyn-sweep-{token}-{k}", pure=False,
+                               priority=len(todo) - k, retries=0)
+        futures[future] = p
+    done = 0
+    try:
+        for future in as_completed(futures):
+            p = futures[future]
+            outcome = _outcome(future, out / p.name)
+            done += 1
+            head = f"[{done}/{len(todo)}]"
+            if outcome["status"] == "finished":
+                say(f"{head} finished {p.name} ({outcome['how']}, "
+                    f"{outcome['seconds']:.1f} s)", style="green")
+            else:
+                say(f"{head} FAILED {p.name}: {outcome['error']} (see "
+                    f"{out / p.name / ERROR_FILE})", style="bold red")
+    except KeyboardInterrupt:
+        client.cancel(list(futures))
+        raise SweepInterrupted(
+            f"interrupted after {done} of {len(todo)} runs: the running ones keep their last "
+            "checkpoint; rerun the same command to continue") from None
+
+
+def _outcome(future, directory):
+    """The task's outcome dict; a task that died (worker lost) is recorded here."""
+    if future.status == "finished":
+        return future.result()
+    try:
+        err = future.exception()
+        message = f"{type(err).__name__}: {err}"
+        trace = "".join(traceback.format_tb(future.traceback()))
+    except Exception as other:  # a cancelled future has no exception to show
+        message, trace = f"{future.status}: {other}", ""
+    directory.mkdir(parents=True, exist_ok=True)
+    (directory / ERROR_FILE).write_text(f"{message}\n\n{trace}")
+    return {"status": "failed", "error": message, "seconds": 0.0}
+
+
+# ---------------------------------------------------------------- collecting, summary
+def collect(sweep: Sweep, out):
+    """Copies of every point of ``sweep`` with ``directory``, ``status`` (finished,
+    failed or pending), ``results`` and ``error`` read from the sweep directory."""
+    out = pathlib.Path(out)
+    points = []
+    for p in sweep.points:
+        directory = out / p.name
+        status, results, error = "pending", finished(directory), None
+        if results is not None:
+            status = "finished"
+        elif (directory / ERROR_FILE).exists():
+            status = "failed"
+            error = (directory / ERROR_FILE).read_text().split("\n\n")[0].strip()
+        points.append(dataclasses.replace(p, status=status, results=results, error=error,
+                                          directory=directory))
+    return points
+
+
+def flatten(results, prefix=""):
+    """Scalar results as {"a.b.c": value} (numbers and booleans; lists and text left
+    out): {"bauer": {"vertical": {"h_s_Pa": 1e7}}} -> {"bauer.vertical.h_s_Pa": 1e7}."""
+    out = {}
+    for key, value in results.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, dict):
+            out.update(flatten(value, name + "."))
+        elif isinstance(value, (bool, int, float)) and value is not None:
+            out[name] = value
+    return out
+
+
+def groups(points):
+    """The points grouped by (parameter, value), in sweep order, reference first."""
+    out = {}
+    for p in points:
+        out.setdefault(p.group, []).append(p)
+    return list(out.values())
+
+
+def statistics(points):
+    """Mean, sample standard deviation (ddof = 1; None with one seed) and count over the
+    finished points of every numeric (not boolean) scalar result; non-finite values are
+    left out."""
+    values = {}
+    for p in points:
+        if p.status != "finished":
+            continue
+        for key, v in flatten(p.results).items():
+            if not isinstance(v, bool) and math.isfinite(v):
+                values.setdefault(key, []).append(float(v))
+    mean = {k: float(np.mean(v)) for k, v in values.items()}
+    std = {k: float(np.std(v, ddof=1)) if len(v) > 1 else None for k, v in values.items()}
+    return mean, std, {k: len(v) for k, v in values.items()}
+
+
+def _cell(value):
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, (list, tuple, dict)):
+        return json.dumps(value)
+    return str(value)
+
+
+def write_summary(out, points, sweep_name="", protocol=""):
+    """summary.csv (one row per point, results flattened) and summary.json (per
+    parameter value: mean and std over seeds of every numeric result); their paths."""
+    out = pathlib.Path(out)
+    fixed = ["parameter", "label", "value", "display", "seed", "status", "directory",
+             "error"]
+    columns = []
+    for p in points:
+        for key in flatten(p.results or {}):
+            if key not in columns:
+                columns.append(key)
+    with open(out / "summary.csv", "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(fixed + columns)
+        for p in points:
+            flat = flatten(p.results or {})
+            writer.writerow([_cell(x) for x in (
+                p.parameter or REFERENCE, p.label, p.value, p.display, p.seed, p.status,
+                p.name, p.error)] + [_cell(flat.get(c)) for c in columns])
+    runs = {p.name: p.status for p in points}
+    summary = {"sweep": sweep_name, "protocol": protocol,
+               "runs": {s: sum(1 for v in runs.values() if v == s)
+                        for s in ("finished", "failed", "pending")},
+               "groups": []}
+    for members in groups(points):
+        first = members[0]
+        mean, std, count = statistics(members)
+        summary["groups"].append({
+            "parameter": first.parameter, "label": first.label, "value": first.value,
+            "display": first.display, "base_value": first.base_value,
+            "seeds": [p.seed for p in members],
+            "directories": [p.name for p in members],
+            "finished": sum(p.status == "finished" for p in members),
+            "failed": [p.name for p in members if p.status == "failed"],
+            "pending": [p.name for p in members if p.status == "pending"],
+            "mean": mean, "std": std, "count": count})
+    (out / "summary.json").write_text(json.dumps(summary, indent=1))
+    return [out / "summary.csv", out / "summary.json"]
+
+
+def summary_hook(kind):
+    """The protocol's sweep summary function, or None: the protocol class's
+    ``summarize_sweep`` if it has one, else the one named in SUMMARIES."""
+    from .runner import PROTOCOLS
+
+    hook = getattr(PROTOCOLS.get(kind), "summarize_sweep", None)
+    if hook is None and kind in SUMMARIES:
+        module, name = SUMMARIES[kind].split(":")
+        hook = getattr(importlib.import_module(module), name)
+    return hook
+
+
+def finish(sweep: Sweep, out, say=None):
+    """Collect the points, write the summaries (general and protocol), say what failed;
+    returns the Report."""
+    say = say or (lambda text, style=None: print(text))
+    out = pathlib.Path(out)
+    points = collect(sweep, out)
+    kind = sweep.base.protocol.kind
+    paths = write_summary(out, points, sweep.path.name, kind)
+    summary_error = None
+    hook = summary_hook(kind)
+    if hook is not None:
+        try:
+            paths += [pathlib.Path(p) for p in hook(out, points) or []]
+        except Exception as err:  # the runs are safe; only this summary is missing
+            summary_error = f"{type(err).__name__}: {err}"
+            (out / "summary_error.txt").write_text(f"{summary_error}\n\n"
+                                                   f"{traceback.format_exc()}")
+            say(f"the {kind} summary failed: {summary_error} (see "
+                f"{out / 'summary_error.txt'})", style="bold red")
+        else:
+            (out / "summary_error.txt").unlink(missing_ok=True)
+    seen, runs = set(), []
+    for p in points:
+        if p.name not in seen:
+            seen.add(p.name)
+            runs.append(p)
+    report = Report(out, points, runs, paths, summary_error)
+    say(f"{len(report.finished)} of {len(runs)} runs finished; summary: "
+        + ", ".join(str(p.relative_to(out)) if p.is_relative_to(out) else str(p)
+                    for p in paths))
+    if report.failed:
+        say(f"{len(report.failed)} run(s) failed (rerun the same command to retry them):",
+            style="bold red")
+        for p in report.failed:
+            say(f"  {p.name}: {p.error}", style="red")
+    if report.pending:
+        say(f"{len(report.pending)} run(s) did not run: "
+            + ", ".join(p.name for p in report.pending), style="yellow")
+    return report

@@ -1,0 +1,211 @@
+"""Sweeps that run: one point's task (skip, resume, start, fail), a local-cluster sweep
+interrupted by Ctrl-C and resumed by rerunning the same command (with a failing point),
+and a sweep on a Dask scheduler given by address."""
+import contextlib
+import json
+import os
+import signal
+import time
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from graindyn import runner as runs
+from graindyn import sweep as sweeps
+from graindyn.cli import app
+from graindyn.sweep import Sweep, run_point
+
+from .conftest import cli, write_sweep
+
+runner = CliRunner()
+
+
+# ---------------------------------------------------------------- one point's task
+@pytest.fixture
+def calls(monkeypatch):
+    """runner.execute / runner.resume replaced by recorders (nothing simulates)."""
+    log = []
+
+    def execute(config, out, show_progress=True, echo=print):
+        log.append(("execute", out, config.run.threads, show_progress))
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "results.json").write_text("{}")
+
+    def resume(out, show_progress=True, echo=print, threads=None):
+        log.append(("resume", out, threads, show_progress))
+
+    monkeypatch.setattr(runs, "execute", execute)
+    monkeypatch.setattr(runs, "resume", resume)
+    return log
+
+
+@pytest.fixture
+def point(tmp_path):
+    sweep = Sweep.load(write_sweep(tmp_path, {"seeds": [1]}))
+    return sweep.points[0].config, tmp_path / "out" / "reference" / "seed-1"
+
+
+def test_task_skips_a_finished_point(calls, point):
+    config, folder = point
+    folder.mkdir(parents=True)
+    (folder / "results.json").write_text('{"steps": 3}')
+    outcome = run_point(config, folder, 2)
+    assert outcome["status"] == "finished" and calls == []
+
+
+def test_task_resumes_from_a_checkpoint(calls, point):
+    config, folder = point
+    (folder / "checkpoints").mkdir(parents=True)
+    (folder / "checkpoints" / "checkpoint.h5").write_bytes(b"x")
+    (folder / "results.json").write_text('{"steps": ')       # cut short by a kill
+    outcome = run_point(config, folder, 2)
+    assert calls == [("resume", folder, 2, False)] and outcome["how"] == "resumed"
+
+
+def test_task_restarts_a_run_without_checkpoint(calls, point):
+    config, folder = point
+    folder.mkdir(parents=True)
+    (folder / "config.toml").write_text("leftover")
+    (folder / "error.txt").write_text("old failure")
+    outcome = run_point(config, folder, 3)
+    assert calls == [("execute", folder, 3, False)] and outcome["how"] == "started"
+    assert not (folder / "config.toml").exists() and not (folder / "error.txt").exists()
+    assert config.run.threads == 0            # the point's config itself is untouched
+
+
+def test_task_records_a_failure(monkeypatch, point):
+    config, folder = point
+
+    def execute(config, out, **kw):
+        raise FloatingPointError("the grains flew apart")
+
+    monkeypatch.setattr(runs, "execute", execute)
+    outcome = run_point(config, folder, 1)
+    assert outcome["status"] == "failed"
+    assert outcome["error"] == "FloatingPointError: the grains flew apart"
+    text = (folder / "error.txt").read_text()
+    assert text.startswith("FloatingPointError: the grains flew apart")
+    assert "Traceback" in text and "raise FloatingPointError" in text
+
+
+def test_task_leaves_foreign_files_alone(calls, point):
+    config, folder = point
+    folder.mkdir(parents=True)
+    (folder / "thesis.tex").write_text("precious")
+    outcome = run_point(config, folder, 1)
+    assert outcome["status"] == "failed" and "not a graindyn run" in outcome["error"]
+    assert (folder / "thesis.tex").read_text() == "precious" and calls == []
+
+
+# ---------------------------------------------------------------- interrupted, resumed
+@pytest.fixture(scope="module")
+def interrupted(tmp_path_factory):
+    """``graindyn sweep`` on a local cluster of one worker: the reference (short), a long
+    point (protocol.max_time = 0.3 s) and a point that breaks (overlap limit 1e-6).
+    Ctrl-C once the reference has finished and the long point has written two
+    checkpoints; then the same command again."""
+    folder = tmp_path_factory.mktemp("interrupted")
+    path = write_sweep(folder, {"seeds": [1], "vary": [
+        {"parameter": "protocol.max_time", "values": [0.3]},
+        {"parameter": "integrator.overlap_limit", "values": [1e-6]}]})
+    out = folder / "out"
+    reference, long = out / "reference" / "seed-1", out / "max_time=0.3" / "seed-1"
+    proc = cli("sweep", path, "--out", out, "--workers", "1")
+    try:
+        deadline = time.time() + 300
+        while time.time() < deadline and proc.poll() is None and not (
+                (reference / "results.json").exists()
+                and (long / "checkpoints" / "checkpoint.prev.h5").exists()):
+            time.sleep(0.02)
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGINT)
+        first, _ = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    state = {"code": proc.returncode, "long_finished": (long / "results.json").exists(),
+             "mtime": (reference / "results.json").stat().st_mtime_ns,
+             "reference": (reference / "results.json").read_text()}
+    proc = cli("sweep", path, "--out", out, "--workers", "1")
+    second, _ = proc.communicate(timeout=600)
+    return {"out": out, "first": first, "second": second, "code": proc.returncode,
+            "before": state}
+
+
+def test_interrupted_sweep_resumes_without_recomputing(interrupted):
+    before, out = interrupted["before"], interrupted["out"]
+    assert before["code"] == 130, interrupted["first"]
+    assert "rerun the same command" in interrupted["first"]
+    assert "Traceback" not in interrupted["first"]
+    assert not before["long_finished"], "Ctrl-C should land while the long point runs"
+    reference = out / "reference" / "seed-1" / "results.json"
+    assert reference.stat().st_mtime_ns == before["mtime"]
+    assert reference.read_text() == before["reference"]
+    assert "1 finished earlier, 2 to run" in interrupted["second"]
+    assert "finished reference" not in interrupted["second"]
+    long = out / "max_time=0.3" / "seed-1"
+    assert "resume from step" in (long / "run.log").read_text()
+    assert "finished max_time=0.3/seed-1 (resumed" in interrupted["second"]
+    results = json.loads((long / "results.json").read_text())
+    assert results["time_s"] == pytest.approx(0.3, rel=1e-3)
+
+
+def test_failed_point_is_reported_and_the_others_finish(interrupted):
+    out, second = interrupted["out"], interrupted["second"]
+    assert interrupted["code"] == 1, second
+    assert "Traceback" not in second
+    assert "FAILED overlap_limit=1e-6/seed-1: SimulationError: an overlap exceeded" in second
+    assert "2 of 3 runs finished" in second and "1 run(s) failed" in second
+    error = (out / "overlap_limit=1e-6" / "seed-1" / "error.txt").read_text()
+    assert error.startswith("SimulationError") and "Traceback" in error
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["runs"] == {"finished": 2, "failed": 1, "pending": 0}
+    rows = (out / "summary.csv").read_text().splitlines()
+    assert len(rows) == 4 and "overlap_limit=1e-6/seed-1" in rows[3]
+    assert ",failed," in rows[3] and ",finished," in rows[1] and ",finished," in rows[2]
+    for name in ("sweep.toml", "base.toml", "points.json"):
+        assert (out / name).exists()
+
+
+# ---------------------------------------------------------------- a given scheduler
+@pytest.fixture(scope="module")
+def scheduler():
+    """The address of a running Dask scheduler with one worker process."""
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                      dashboard_address=":0") as cluster:
+        yield cluster.scheduler_address
+
+
+def test_sweep_on_a_scheduler_combines_the_seeds(scheduler, tmp_path):
+    path = write_sweep(tmp_path, {"seeds": [1, 2]})
+    out = tmp_path / "out"
+    result = runner.invoke(app, ["sweep", str(path), "--out", str(out), "--scheduler",
+                                 scheduler, "--threads-per-worker", "1"])
+    assert result.exit_code == 0, result.output
+    assert f"the Dask scheduler at {scheduler}" in result.output
+    assert "[2/2] finished" in result.output
+    results = [json.loads((out / "reference" / f"seed-{s}" / "results.json").read_text())
+               for s in (1, 2)]
+    meta = json.loads((out / "reference" / "seed-2" / "meta.json").read_text())
+    assert meta["seed"] == 2 and meta["threads"] == 1 and results[1]["threads"] == 1
+    fractions = [r["packing_fraction"] for r in results]
+    assert fractions[0] != fractions[1]       # two seeds, two samples
+    group = json.loads((out / "summary.json").read_text())["groups"][0]
+    assert group["mean"]["packing_fraction"] == pytest.approx(np.mean(fractions))
+    assert group["std"]["packing_fraction"] == pytest.approx(np.std(fractions, ddof=1))
+    # the same command again computes nothing
+    again = runner.invoke(app, ["sweep", str(path), "--out", str(out), "--scheduler",
+                                scheduler])
+    assert again.exit_code == 0 and "2 finished earlier, 0 to run" in again.output
+    assert "running on" not in again.output
+
+
+def test_unreachable_scheduler_is_a_clear_error(tmp_path, monkeypatch):
+    monkeypatch.setattr(sweeps, "CONNECT_TIMEOUT", "1s")
+    path = write_sweep(tmp_path, {"seeds": [1]})
+    result = runner.invoke(app, ["sweep", str(path), "--out", str(tmp_path / "out"),
+                                 "--scheduler", "tcp://127.0.0.1:9"])
+    assert result.exit_code == 2 and "cannot connect" in result.output, result.output
