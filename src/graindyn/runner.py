@@ -98,6 +98,7 @@ class _Driver:
 
     def __init__(self, rundir, protocol, sim, rng, progress_state, vtk_entries, show):
         self.rundir, self.protocol, self.sim, self.rng = rundir, protocol, sim, rng
+        protocol.log = rundir.log
         self.state = progress_state
         out = protocol.config.output
         self.series = Series(rundir.path / "series.csv")

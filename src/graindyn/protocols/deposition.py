@@ -23,6 +23,10 @@ class Deposition:
 
     phases = ("settle",)
 
+    @staticmethod
+    def log(message):
+        """Where the protocol reports its progress (the driver sets the run log)."""
+
     def __init__(self, config: Config):
         self.config = config
         self.dim = config.run.dim
@@ -80,10 +84,22 @@ class Deposition:
 
     def run_phase(self, phase, sim, state, **run):
         """Run ``phase``; ``state`` (dict) records how far it got.  Returns sim.run's
-        status ("stopped" means interrupted: call again with the same state)."""
+        status ("stopped" means interrupted: call again with the same state).
+
+        The equilibrium criterion is armed only after the free-fall time
+        sqrt(2 h / g) of the highest grain above the floor: grains released at rest
+        have E_kin/E_pot ~ 0 before they start to fall."""
         end = state.setdefault("end_step", sim.step + math.ceil(
             self.config.protocol.max_time / sim.dt - 1e-9))
-        status = sim.run(steps=end - sim.step, until=self.criterion, **run)
+        if "armed_step" not in state:
+            up = self.dim - 1
+            drop = float(np.max(sim.state.positions[:, up] - sim.state.radii)) - self.floor
+            g = float(np.linalg.norm(sim.clock[3:6]))
+            fall = math.sqrt(2.0 * max(drop, 0.0) / g) if g > 0 else 0.0
+            state["armed_step"] = min(end, sim.step + math.ceil(fall / sim.dt))
+        status = sim.run(steps=max(0, state["armed_step"] - sim.step), **run)
+        if status == "done":
+            status = sim.run(steps=end - sim.step, until=self.criterion, **run)
         if status != "stopped":
             state["reached"] = status == "condition"
         return status

@@ -12,13 +12,15 @@ checked between compiled chunks (at most servo_time/4 apart), or until level_max
 passes (the level is then recorded with at_rest = false).
 
 Servo control law: v = clamp(g (p A - F_piston), -v_max, v_max) along the piston normal,
-with the gain re-set between chunks to g = min(1/(tau K), v_max/(p A)), where K [N/m] is
-the tangent stiffness of the piston's contacts, sum of 1.5 F_c/delta_c (Hertz; the
-linear law's F/delta is smaller, so the estimate errs on the slow side).  The sample
-behind the contacts is softer than K, so the force error decays no faster than
-exp(-t/tau); tau >> the sample's wave transit time keeps the loading quasi-static and the
-wall, having no inertia, cannot overshoot by itself.  Far from the target (or before the
-first contact) the piston moves at v_max.
+with the gain re-set between chunks to g = min(v_max/(0.1 p A), 1/(tau K)).  K [N/m] is
+the stiffness of the sample seen by the piston: the secant dF/dz of the piston since the
+last chunk, capped by the tangent stiffness of the piston's contacts (sum of
+1.5 F_c/delta_c, Hertz), which the sample behind them cannot exceed.  So where the
+sample responds elastically the force error decays no faster than exp(-t/tau), and
+tau >> the sample's wave transit time keeps the loading quasi-static; the wall has no
+inertia and cannot overshoot by itself.  Where the sample yields (dF/dz <= 0) or far from
+the target (error > 10 %) the piston moves at up to v_max; a sample that creeps at speed
+u leaves a force error of 0.1 p A u/v_max until it stops creeping.
 
 Recorded at each level (``rows``): the stresses on the piston and on the bottom, the
 mean lateral stress on the side walls (normal contact forces over the wetted side
@@ -45,6 +47,7 @@ from .deposition import Deposition
 
 PISTON = "piston"
 MEASURES = {"vertical": "sigma_top_Pa", "trace": "trace_Pa"}
+BAND = 0.1  # the piston moves at full speed while the force error exceeds 10 % of the target
 
 
 def ladder(p0, p_max, factor, unload=False):
@@ -118,7 +121,8 @@ class Oedometer(Deposition):
         interrupted = []
 
         def check(sim):
-            self._tune(sim, k)
+            self._tune(sim, k, state)
+            state["peak"] = max(state.get("peak", 0.0), sim.walls.normal_force(k))
             if self._at_rest(sim, k):
                 self._finish_level(sim, state, k, True)
             if between is not None and between(sim):
@@ -142,18 +146,30 @@ class Oedometer(Deposition):
         """Start the current level: the servo's target force and the level's deadline."""
         target = self.levels[state["level"]][0] * self.cross_section
         sim.walls.motion[k, 3] = target
+        bound = self.config.protocol.max_speed / (BAND * target)
+        sim.walls.motion[k, 4] = min(sim.walls.motion[k, 4], bound) if state["level"] \
+            else bound
         state["level_end"] = sim.step + math.ceil(
             self.config.protocol.level_max_time / sim.dt - 1e-9)
-        self._tune(sim, k)
 
-    def _tune(self, sim, k):
-        """Servo gain g = min(1/(tau K), v_max/F_target) from the piston's contacts."""
+    def _tune(self, sim, k, state):
+        """Servo gain g = min(v_max/(BAND F_target), 1/(tau K)), K the sample's stiffness seen
+        by the piston: the secant dF/dz since the last call, capped by the stiffness of
+        the piston's contacts (the sample behind them is softer); no cap when the sample
+        yields (dF/dz <= 0).  The last (z, F) is kept in ``state`` (checkpointed)."""
         p = self.config.protocol
         target = sim.walls.motion[k, 3]
-        stiffness = self._contact_stiffness(sim, k)
-        gain = p.max_speed / target
-        if stiffness > 0:
-            gain = min(gain, 1.0 / (p.servo_time * stiffness))
+        z = float(sim.walls.offset[k, 2])
+        force = sim.walls.normal_force(k)
+        gain = p.max_speed / (BAND * target)
+        z_last, f_last = state.get("servo", (z, force))
+        if z_last != z:
+            stiffness = min((force - f_last) / (z_last - z), self._contact_stiffness(sim, k))
+            if stiffness > 0:
+                gain = min(gain, 1.0 / (p.servo_time * stiffness))
+        elif "servo" in state:
+            gain = sim.walls.motion[k, 4]
+        state["servo"] = (z, force)
         sim.walls.motion[k, 4] = gain
 
     @staticmethod
@@ -181,7 +197,11 @@ class Oedometer(Deposition):
     def _finish_level(self, sim, state, k, at_rest):
         target, branch = self.levels[state["level"]]
         row = {"level": state["level"], "branch": branch, "target_Pa": target,
-               "at_rest": at_rest, **self.measure(sim)}
+               "at_rest": at_rest, **self.measure(sim),
+               "peak_over_target": state.pop("peak", 0.0) / (target * self.cross_section)}
+        self.log(f"level {row['level']} ({branch}) p = {target:.4g} Pa: sigma_top = "
+                 f"{row['sigma_top_Pa']:.4g} Pa, e = {row['void_ratio']:.5f}, "
+                 f"{'at rest' if at_rest else 'NOT at rest'} at t = {sim.time:.5g} s")
         state["rows"].append(row)
         state["level"] += 1
         del state["level_end"]

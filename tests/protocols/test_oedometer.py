@@ -1,0 +1,140 @@
+"""The oedometric test (protocols/oedometer.py): the servo wall against Hertz's law, the
+stress ladder, a small oedometer run checked for equilibrium and force balance, and an
+interrupted oedometer resumed to the same numbers."""
+import copy
+import json
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import tomli_w
+
+import graindyn as gd
+from graindyn.config import ConfigError, validate
+from graindyn.core.walls import Motion, Plane
+from graindyn.output import checkpoint
+from graindyn.protocols.oedometer import ladder
+from graindyn.runner import execute
+
+
+
+def cli(*args):
+    """``python -m graindyn ARGS`` as a subprocess."""
+    return subprocess.Popen([sys.executable, "-m", "graindyn", *map(str, args)],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+SMALL = {
+    "run": {"name": "small_oedometer", "seed": 3},
+    "grains": {"count": 100, "material": "sand",
+               "diameter": {"min": 0.85e-3, "max": 1.15e-3}},
+    "materials": [{"name": "sand", "youngs_modulus": 1e8, "poisson_ratio": 0.25,
+                   "gamma_n": 6e5, "friction_sliding": 0.4, "tangential_damping": 1.0}],
+    "contact": {"normal": "hertz", "damping": "viscoelastic", "tangential": "mindlin"},
+    "walls": {"material": "sand",
+              "container": {"kind": "cylinder", "radius": 2.5e-3, "height": 12e-3}},
+    "integrator": {"name": "optimized_velocity_verlet"},
+    "protocol": {"kind": "oedometer", "packing_fraction": 0.25, "threshold": 1e-5,
+                 "max_time": 0.3, "p0": 2e3, "p_max": 8e3, "servo_time": 2e-3,
+                 "max_speed": 0.05, "level_max_time": 0.1},
+    "output": {"series_every": 1e-3, "figures": True},
+}
+
+
+def test_ladder_doubles_up_to_p_max_and_back():
+    assert ladder(1.0, 8.0, 2.0) == [(1.0, "loading"), (2.0, "loading"), (4.0, "loading"),
+                                     (8.0, "loading")]
+    assert [p for p, _ in ladder(1.0, 5.0, 2.0)] == [1.0, 2.0, 4.0, 5.0]
+    down = ladder(1.0, 4.0, 2.0, unload=True)
+    assert down[3:] == [(2.0, "unloading"), (1.0, "unloading")]
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda c: c["protocol"].update(p_max=1e3), "p_max"),
+    (lambda c: c["protocol"].update(piston_material="brass"), "piston_material"),
+    (lambda c: c["run"].update(dim=2, gravity=[0, -9.81, 0]), "dim = 3"),
+])
+def test_bad_oedometer_configs_are_refused(change, message):
+    data = copy.deepcopy(SMALL)
+    change(data)
+    with pytest.raises(ConfigError, match=message):
+        validate(data)
+
+
+def test_servo_wall_holds_a_sphere_at_the_hertz_overlap():
+    """A sphere between a fixed floor and a servo wall with target F, no gravity: at rest
+    both overlaps are the Hertz overlap of F, (3 F / (4 E* sqrt(R)))^(2/3), and the
+    force never exceeds the target by more than 1 % (the wall has no inertia)."""
+    radius, target = 0.5e-3, 0.05
+    mat = gd.Material(youngs_modulus=1e8, poisson_ratio=0.3, restitution=0.5,
+                      friction_sliding=0.0)
+    state = gd.State.create(np.array([[0.0, 0.0, radius]]), [radius], 2650.0)
+    piston = Plane((0, 0, 2 * radius + 1e-6), (0, 0, -1), name="piston",
+                   motion=Motion("servo", direction=(0, 0, -1), force=target, gain=0.2,
+                                 max_speed=0.01))
+    sim = gd.Simulation(state, [mat], gd.ContactModel("hertz", "tsuji", "coulomb"),
+                        walls=[Plane((0, 0, 0), (0, 0, 1), name="floor"), piston],
+                        gravity=(0.0, 0.0, 0.0))
+    peak = []
+    sim.run(time=0.02, every=[(gd.Periodic(steps=1), lambda s: peak.append(
+        s.walls.normal_force(1)))])
+    e_star = mat.youngs_modulus / (2 * (1 - mat.poisson_ratio**2))  # wall of the same material
+    hertz = (3 * target / (4 * e_star * np.sqrt(radius))) ** (2 / 3)
+    gap = sim.walls.offset[1, 2] + sim.walls.geometry[1, 2]
+    assert sim.walls.normal_force(1) == pytest.approx(target, rel=1e-3)
+    assert sim.walls.normal_force(0) == pytest.approx(target, rel=1e-3)
+    assert 2 * radius - gap == pytest.approx(2 * hertz, rel=1e-3)
+    assert max(peak) <= 1.01 * target
+
+
+@pytest.fixture(scope="module")
+def oedometer(tmp_path_factory):
+    out = tmp_path_factory.mktemp("oedometer") / "run"
+    results = execute(validate(SMALL), out, show_progress=False, echo=lambda *a: None)
+    return out, results
+
+
+def test_small_oedometer_ladder(oedometer):
+    out, results = oedometer
+    rows = results["ladder"]
+    assert [r["target_Pa"] for r in rows] == [2e3, 4e3, 8e3]
+    assert all(r["at_rest"] for r in rows), [(r["target_Pa"], r["sigma_top_Pa"]) for r in rows]
+    e = [r["void_ratio"] for r in rows]
+    assert all(a > b for a, b in zip(e, e[1:])), e
+    for r in rows:
+        piston = r["sigma_top_Pa"] * np.pi * 2.5e-3**2
+        bottom = r["sigma_bottom_Pa"] * np.pi * 2.5e-3**2
+        assert r["sigma_top_Pa"] == pytest.approx(r["target_Pa"], rel=0.01)
+        # bottom + side-wall friction carry the piston force and the weight
+        assert bottom + r["side_friction_N"] == pytest.approx(piston + r["weight_N"],
+                                                               rel=0.01)
+        assert 0.1 < r["K0"] < 2.0
+        assert r["trace_Pa"] == pytest.approx(r["sigma_top_Pa"] + 2 * r["sigma_lateral_Pa"])
+    assert set(results["bauer"]) == {"vertical", "trace"}
+    assert (out / "ladder.csv").read_text().count("\n") == 4
+    assert (out / "figures" / "oedometer.png").stat().st_size > 10_000
+    assert "level 2 (loading)" in (out / "run.log").read_text()
+
+
+def test_interrupted_oedometer_resumes_to_the_same_numbers(oedometer, tmp_path):
+    finished, results = oedometer
+    (tmp_path / "run.toml").write_text(tomli_w.dumps(SMALL))
+    run = tmp_path / "run"
+    proc = cli("run", tmp_path / "run.toml", "--out", run)
+    log = run / "run.log"
+    deadline = time.time() + 600
+    while time.time() < deadline and not (log.exists() and "level 0" in log.read_text()):
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGTERM)
+    out, _ = proc.communicate(timeout=600)
+    assert proc.returncode == 128 + signal.SIGTERM, out
+    _, meta, step, _ = checkpoint.read(run / "checkpoints" / "checkpoint.h5")
+    assert meta["protocol"]["states"]["load"]["level"] >= 1
+    assert step < results["ladder"][-1]["step"]
+    proc = cli("run", "--resume", run)
+    out, _ = proc.communicate(timeout=900)
+    assert proc.returncode == 0, out
+    resumed = json.loads((run / "results.json").read_text())
+    assert resumed["ladder"] == json.loads((finished / "results.json").read_text())["ladder"]
