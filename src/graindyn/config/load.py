@@ -64,16 +64,19 @@ def validate(data: dict, source="config") -> Config:
         raise ConfigError(format_errors(err, source)) from None
 
 
-def load(path) -> Config:
-    """Read and validate a TOML config file."""
-    path = pathlib.Path(path)
+def read_toml(path, what="config"):
+    """The dict of a TOML file; ConfigError when it is missing or not TOML."""
     try:
-        data = tomllib.loads(path.read_text())
+        return tomllib.loads(pathlib.Path(path).read_text())
     except FileNotFoundError:
-        raise ConfigError(f"{path}: no such config file") from None
+        raise ConfigError(f"{path}: no such {what} file") from None
     except tomllib.TOMLDecodeError as err:
         raise ConfigError(f"{path}: not valid TOML: {err}") from None
-    return validate(data, str(path))
+
+
+def load(path) -> Config:
+    """Read and validate a TOML config file."""
+    return validate(read_toml(path), str(path))
 
 
 def dumps(config: Config) -> str:

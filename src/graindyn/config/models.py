@@ -292,8 +292,17 @@ class Config(Section):
     walls: WallsSection
     integrator: IntegratorSection = _f(IntegratorSection(), "time integration")
     protocol: DepositionProtocol | OedometerProtocol = _f(
-        DepositionProtocol(), "what the run does", discriminator="kind")
+        DepositionProtocol(), "what the run does (kind: deposition, the default, or "
+        "oedometer)", discriminator="kind")
     output: OutputSection = _f(OutputSection(), "what the run writes")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _default_protocol_kind(cls, data):
+        if isinstance(data, dict) and isinstance(data.get("protocol"), dict) \
+                and "kind" not in data["protocol"]:
+            data = {**data, "protocol": {"kind": "deposition", **data["protocol"]}}
+        return data
 
     @model_validator(mode="after")
     def _cross_checks(self):

@@ -14,13 +14,12 @@ This module checks the file's own shape (unknown keys, lengths, duplicates); wha
 values mean is checked by building each point's ``Config`` (``graindyn.sweep``).
 """
 import pathlib
-import tomllib
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, \
     model_validator
 
-from .load import ConfigError
+from .load import ConfigError, read_toml
 
 # config fields a sweep sets itself: varying them would be silently overridden
 RESERVED = {"run.seed": "the sweep sets it per point: list the seeds in 'seeds'",
@@ -115,12 +114,7 @@ def _format(error: ValidationError, source):
 def load_sweep_file(path) -> SweepFile:
     """Read and check a sweep file; ConfigError naming every problem otherwise."""
     path = pathlib.Path(path)
-    try:
-        data = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: no such sweep file") from None
-    except tomllib.TOMLDecodeError as err:
-        raise ConfigError(f"{path}: not valid TOML: {err}") from None
+    data = read_toml(path, "sweep")
     try:
         return SweepFile.model_validate(data)
     except ValidationError as err:

@@ -132,9 +132,16 @@ class Deposition:
         ax[1].set(xlabel="t [s]", ylabel="bottom force / weight [-]")
         fig.suptitle(f"{self.config.run.name}: packing fraction "
                      f"{results.get('packing_fraction', float('nan')):.3f}")
-        fig.tight_layout()
-        path = rundir.figures / "deposition.png"
-        path.parent.mkdir(exist_ok=True)
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        return [path]
+        return [save_figure(fig, rundir, "deposition.png")]
+
+
+def save_figure(fig, rundir, name):
+    """Write ``fig`` as figures/``name`` of the run directory, close it; the path."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    path = rundir.figures / name
+    path.parent.mkdir(exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path

@@ -43,7 +43,7 @@ from ..config import build
 from ..config.models import BoxContainer, Config
 from ..core.simulation import Simulation
 from ..core.walls import SERVO, Plane
-from .deposition import Deposition
+from .deposition import Deposition, save_figure
 
 PISTON = "piston"
 MEASURES = {"vertical": "sigma_top_Pa", "trace": "trace_Pa"}
@@ -291,12 +291,7 @@ class Oedometer(Deposition):
         axes[2].set(xlabel="t [s]", ylabel="piston stress [MPa]")
         fig.suptitle(f"{self.config.run.name}: oedometric test, {self.config.grains.count} "
                      "grains")
-        fig.tight_layout()
-        path = rundir.figures / "oedometer.png"
-        path.parent.mkdir(exist_ok=True)
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        return [path]
+        return [save_figure(fig, rundir, "oedometer.png")]
 
 
 def fit_ladder(rows):
