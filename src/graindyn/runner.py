@@ -231,7 +231,11 @@ def resume(out, show_progress=True, echo=print, threads=None):
     state = State.create(arrays["grains/positions"], arrays["grains/radii"], density,
                          dim=config.run.dim, materials=materials)
     sim = protocol.build(state)
-    sim.restore(arrays)
+    try:
+        sim.restore(arrays)
+    except ValueError as err:
+        raise checkpoint.CheckpointError(f"{rundir.path}: the checkpoint does not fit this "
+                                         f"run's config: {err}") from None
     rng = np.random.default_rng()
     rng.bit_generator.state = meta["rng"]
     Series(rundir.path / "series.csv").truncate(step)

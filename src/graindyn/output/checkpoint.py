@@ -17,7 +17,7 @@ import numpy as np
 
 from .. import __version__
 
-CHECKPOINT_FORMAT = 1
+CHECKPOINT_FORMAT = 2  # 2: walls/motion_kind and walls/motion (servo state) added
 LATEST = "checkpoint.h5"
 PREVIOUS = "checkpoint.prev.h5"
 
