@@ -13,7 +13,6 @@
 """
 import math
 
-import numba
 import numpy as np
 import pytest
 
@@ -22,13 +21,7 @@ from graindyn.core.integrators import NAMES
 from graindyn.studies.problems import hertz_resting_energy_error, resting_grain_error
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _one_thread():
-    """One grain: one numba thread avoids prange barriers on a busy machine."""
-    before = numba.get_num_threads()
-    numba.set_num_threads(1)
-    yield
-    numba.set_num_threads(before)
+pytestmark = pytest.mark.usefixtures("one_thread")
 
 
 def _order(name, damping_constant, coarse):

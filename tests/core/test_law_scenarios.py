@@ -13,7 +13,6 @@ rigid-body mechanics and closed-form results:
 """
 import math
 
-import numba
 import numpy as np
 import pytest
 
@@ -30,12 +29,7 @@ E_STAR = E / (2 * (1 - NU**2))          # grain against a wall of the same mater
 G_STAR = E / (2 * (1 + NU)) / (2 * (2 - NU))
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _one_thread():
-    before = numba.get_num_threads()
-    numba.set_num_threads(1)
-    yield
-    numba.set_num_threads(before)
+pytestmark = pytest.mark.usefixtures("one_thread")
 
 
 def _resting(material, model, v=(0, 0, 0), w=(0, 0, 0), tilt=0.0, dim=3, lock=False, dt=None):

@@ -1,0 +1,13 @@
+"""Fixtures shared by the core tests."""
+import numba
+import pytest
+
+
+@pytest.fixture(scope="module")
+def one_thread():
+    """One numba thread for the module: tests of one or two grains then avoid prange
+    barriers, which stall on a busy machine."""
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    yield
+    numba.set_num_threads(before)
