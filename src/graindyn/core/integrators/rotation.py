@@ -1,7 +1,11 @@
 """Orientation updates: unit quaternions q = (w, x, y, z) mapping body to world frame.
 
 Both updates are orthogonal maps of R^4, so |q| = 1 is kept to round-off without
-renormalisation.
+renormalisation.  Each is applied as an increment, q + (M - I) q, with the small
+coefficients of M - I computed directly: the rounding of a coefficient close to 1 (the
+cosine, or (1 - s)/(1 + s)) would otherwise repeat identically at every step of a steady
+rotation and drift |q| by about 1e-16 per step; in the increment form only the final
+additions round at the scale of q, with signs that vary as q turns.
 """
 import math
 
@@ -15,13 +19,16 @@ def rotate_quaternion(q0, q1, q2, q3, px, py, pz):
     angle = math.sqrt(px * px + py * py + pz * pz)
     if angle == 0.0:
         return q0, q1, q2, q3
-    c = math.cos(0.5 * angle)
+    sq = math.sin(0.25 * angle)
+    c = -2.0 * sq * sq                       # cos(angle/2) - 1
     s = math.sin(0.5 * angle) / angle
     ax = s * px
     ay = s * py
     az = s * pz
-    return (c * q0 - ax * q1 - ay * q2 - az * q3, c * q1 + ax * q0 + ay * q3 - az * q2,
-            c * q2 - ax * q3 + ay * q0 + az * q1, c * q3 + ax * q2 - ay * q1 + az * q0)
+    return (q0 + (c * q0 - ax * q1 - ay * q2 - az * q3),
+            q1 + (c * q1 + ax * q0 + ay * q3 - az * q2),
+            q2 + (c * q2 - ax * q3 + ay * q0 + az * q1),
+            q3 + (c * q3 + ax * q2 - ay * q1 + az * q0))
 
 
 @scalar
@@ -40,11 +47,11 @@ def quaternion_leapfrog(q0, q1, q2, q3, wx, wy, wz, dt):
     by = wy - q0 * ty + (q3 * tx - q1 * tz)
     bz = wz - q0 * tz + (q1 * ty - q2 * tx)
     s = dt * dt * (bx * bx + by * by + bz * bz) / 16.0
-    h = 0.5 * dt
     inv = 1.0 / (1.0 + s)
-    c = 1.0 - s
+    h = 0.5 * dt * inv
+    c = -2.0 * s * inv                       # (1 - s)/(1 + s) - 1
     # Eq. 16: Q(w) q = 1/2 [[0,-bx,-by,-bz],[bx,0,bz,-by],[by,-bz,0,bx],[bz,by,-bx,0]] q
-    return ((c * q0 + h * (-bx * q1 - by * q2 - bz * q3)) * inv,
-            (c * q1 + h * (bx * q0 + bz * q2 - by * q3)) * inv,
-            (c * q2 + h * (by * q0 - bz * q1 + bx * q3)) * inv,
-            (c * q3 + h * (bz * q0 + by * q1 - bx * q2)) * inv)
+    return (q0 + (c * q0 + h * (-bx * q1 - by * q2 - bz * q3)),
+            q1 + (c * q1 + h * (bx * q0 + bz * q2 - by * q3)),
+            q2 + (c * q2 + h * (by * q0 - bz * q1 + bx * q3)),
+            q3 + (c * q3 + h * (bz * q0 + by * q1 - bx * q2)))
