@@ -20,7 +20,7 @@ def test_outputs_written(study):
     for name in ("oquendo_fig2_energy_spread.png", "perez_fig3_collision_velocity_error.png",
                  "order_of_accuracy.png", "oquendo_energy_spread.csv",
                  "perez_collision_velocity_error.csv", "order_of_accuracy.csv",
-                 "order_of_accuracy_summary.csv"):
+                 "order_of_accuracy_summary.csv", "symmetric_top.csv"):
         assert (out / name).stat().st_size > 0, name
     assert json.loads((out / "summary.json").read_text()) == summary
     with open(out / "oquendo_energy_spread.csv") as f:
@@ -57,3 +57,13 @@ def test_order_table_covers_every_scheme(study):
     assert set(orders) == set(NAMES)
     assert orders["velocity_verlet"]["damped"]["order"] == pytest.approx(2.0, abs=0.1)
     assert orders["gear6"]["undamped"]["order"] == pytest.approx(5.0, abs=0.2)
+
+
+def test_symmetric_top_table(study):
+    """The top's precession-rate error is second order in dt and below 1e-3 at
+    dt |w| = 0.01 (VALIDATION G2)."""
+    _, summary = study
+    top = summary["symmetric_top"]
+    assert abs(top["0.01"]["precession_rate_error"]) < 1e-3
+    ratio = top["0.02"]["precession_rate_error"] / top["0.01"]["precession_rate_error"]
+    assert ratio == pytest.approx(4.0, rel=0.05)

@@ -1,5 +1,5 @@
-"""The integrator study (issue 5): Oquendo Fig. 2, Perez Fig. 3 and an order-of-
-accuracy table, written as figures (PNG), tables (CSV, units in the column names) and
+"""The integrator study (issue 5): Oquendo Fig. 2, Perez Fig. 3, an order-of-accuracy
+table and the symmetric top of VALIDATION G2, written as figures (PNG), tables (CSV, units in the column names) and
 a JSON summary into a run directory.
 
 >>> run_integrator_study(pathlib.Path("runs/integrators"), quick=True)   # doctest: +SKIP
@@ -19,7 +19,7 @@ from ..core.state import State
 from ..core.triggers import Periodic
 from ..core.walls import Plane, box
 from ..physics import reference as ref
-from .problems import resting_grain_error
+from .problems import resting_grain_error, symmetric_top_errors
 
 OQUENDO_SCHEMES = ("verlet", "leap_frog", "optimized_velocity_verlet", "gear5")
 PEREZ_SCHEMES = ("velocity_verlet", "beeman", "gear6")
@@ -222,8 +222,27 @@ def order_of_accuracy(outdir, quick):
     return summary
 
 
+# ------------------------------------------------------------------ symmetric top
+def symmetric_top_table(outdir):
+    """VALIDATION G2 for an anisotropic body: the symmetric top of
+    problems.symmetric_top at dt |w| = 0.04 ... 0.005, its precession-rate error and
+    the conservation of energy, |L| and the world-frame L."""
+    rows, summary = [], {}
+    for dt_omega in (0.04, 0.02, 0.01, 0.005):
+        e = symmetric_top_errors(dt_omega)
+        rows.append((dt_omega, e["precession_rate_error"], e["energy_spread"],
+                     e["angular_momentum_norm_spread"], *e["world_angular_momentum_error"]))
+        summary[str(dt_omega)] = e
+    _write_csv(outdir / "symmetric_top.csv",
+               ("dt_times_omega", "precession_rate_relative_error", "energy_spread_relative",
+                "angular_momentum_norm_spread_relative",
+                "world_angular_momentum_error_first_half", "world_angular_momentum_error_second_half"),
+               rows)
+    return summary
+
+
 def run_integrator_study(outdir: pathlib.Path, quick: bool = False) -> dict:
-    """Run the three parts of the study, write figures, tables and ``summary.json`` into
+    """Run the four parts of the study, write figures, tables and ``summary.json`` into
     ``outdir`` (created) and return the summary.  quick=True: fewer and shorter runs,
     for the test suite (under a minute on 2 cores once compiled)."""
     outdir = pathlib.Path(outdir)
@@ -231,6 +250,7 @@ def run_integrator_study(outdir: pathlib.Path, quick: bool = False) -> dict:
     summary = {"quick": quick,
                "oquendo_fig2": oquendo_energy_spread(outdir, quick),
                "perez_fig3": perez_collision_error(outdir),
-               "order_of_accuracy": order_of_accuracy(outdir, quick)}
+               "order_of_accuracy": order_of_accuracy(outdir, quick),
+               "symmetric_top": symmetric_top_table(outdir)}
     (outdir / "summary.json").write_text(json.dumps(summary, indent=2))
     return summary
