@@ -5,7 +5,8 @@ rigid-body mechanics and closed-form results:
 * Oquendo et al. (Eq. 1-10): a sphere sliding on a plane decelerates at mu_k g, then
   rolls at 5/7 of its speed and slows at 5/7 tan(theta_r) g (Eq. 8); on an incline it
   sticks below atan(mu_s) and slides above; spinning about the normal it loses its
-  spin at the rate of Eq. 2; and its mechanical energy never increases.
+  spin at the rate of Eq. 2; and its mechanical energy never increases.  The same for
+  a disk in 2D (2/3 instead of 5/7; no twisting in the plane).
 * Rolling and twisting resistance (type A and EPSD), for spheres and disks.
 * Walton-Braun: restitution out = restitution in (Chung & Ooi test 3 set-up), 3D and 2D.
 * Karrech Hertz-Mindlin: restitution of the 2 alpha sqrt(m k) dashpot from an
@@ -95,40 +96,52 @@ def _oquendo_material(**kw):
                               tangential_damping=3.0, **kw))
 
 
+def _oquendo_material_in(dim, **kw):
+    """The Oquendo test material; in 2D the density is areal [kg/m^2] (slab of
+    thickness R), so the disk weighs about what the sphere does."""
+    return _oquendo_material(**kw) if dim == 3 else _oquendo_material(density=RHO * R, **kw)
+
+
+@pytest.mark.parametrize("dim", [3, 2])
 @pytest.mark.parametrize("tan_theta_r", [0.0, 0.02])
-def test_oquendo_sliding_then_rolling(tan_theta_r):
-    """A sphere launched at v0 without spin slides with dv/dt = -mu_k g (Eq. 5) until
-    t* = 2 v0/(7 mu_k g), then rolls at 5/7 v0 and slows at 5/7 tan(theta_r) g, the
-    rolling force of Eq. 8 with I/(m R^2) = 2/5; energy never increases."""
+def test_oquendo_sliding_then_rolling(tan_theta_r, dim):
+    """A grain launched at v0 without spin slides with dv/dt = -mu_k g (Eq. 5) while
+    friction spins it up at mu_k g m R/I, until t* = v0/(mu_k g (1 + m R^2/I)); then
+    it rolls at v0/(1 + I/(m R^2)) and slows at tan(theta_r) g/(1 + I/(m R^2)), the
+    rolling force of Eq. 8.  I/(m R^2) = 2/5 for a sphere (5/7 v0), 1/2 for a disk
+    (2D: 2/3 v0).  The mechanical energy never increases."""
     v0 = 0.5
-    sim, h = _resting(_oquendo_material(friction_rolling=tan_theta_r), OQUENDO, v=(v0, 0, 0))
-    t_star = 2 * v0 / (7 * MU_K * G)
+    shape = 0.4 if dim == 3 else 0.5
+    sim, h = _resting(_oquendo_material_in(dim, friction_rolling=tan_theta_r), OQUENDO,
+                      v=(v0, 0, 0), dim=dim)
+    t_star = v0 / (MU_K * G * (1 + 1 / shape))
     rec = _record(sim, int(2.5 * t_star / sim.dt))
-    t, v, w = rec[:, 0], rec[:, 2], rec[:, 6]
+    # rolling spin: +y for a sphere on the plane z = 0, -z for a disk on y = 0
+    t, v, w = rec[:, 0], rec[:, 2], rec[:, 6] if dim == 3 else -rec[:, 7]
     assert _slope(t, v, 0.1 * t_star, 0.9 * t_star) == pytest.approx(-MU_K * G, rel=1e-2)
-    # spin-up by the friction torque: dw/dt = 5 mu_k g/(2 R)
     assert _slope(t, w, 0.1 * t_star, 0.9 * t_star) == pytest.approx(
-        5 * MU_K * G / (2 * R), rel=1e-2)
+        MU_K * G / (shape * R), rel=1e-2)
     after = t > 1.2 * t_star
-    v_roll = 5 / 7 * v0 - 5 / 7 * tan_theta_r * G * (t[after] - t_star)
+    v_roll = (v0 - tan_theta_r * G * (t[after] - t_star)) / (1 + shape)
     assert v[after] == pytest.approx(v_roll, rel=1e-2)
     if tan_theta_r > 0:
         assert _slope(t, v, 1.2 * t_star, 2.5 * t_star) == pytest.approx(
-            -5 / 7 * tan_theta_r * G, rel=2e-2)
+            -tan_theta_r * G / (1 + shape), rel=2e-2)
     slip = v - (R - h) * w                     # contact point at R' = R - h (Eq. 3-4)
     assert np.max(np.abs(slip[after])) < 1e-4 * v0
     _never_gains(rec[:, -1], 0.5 * sim.state.masses[0] * v0**2)
 
 
+@pytest.mark.parametrize("dim", [3, 2])
 @pytest.mark.parametrize("ratio,sticks", [(0.8, True), (1.2, False)])
-def test_oquendo_incline_sticks_below_static_angle(ratio, sticks):
+def test_oquendo_incline_sticks_below_static_angle(ratio, sticks, dim):
     """Rotation locked, released on an incline tan(theta) = ratio mu_s (mu_k = 0.75
     mu_s, so kinetic friction alone could not hold it): below atan(mu_s) the grain
     stays put (static friction, Eq. 10), above it slides with g (sin - mu_k cos).
     (0.8: the static spring, about critically damped, overshoots the load by ~13 %
     while it catches the released grain.)"""
     tilt = math.atan(ratio * MU_S)
-    sim, _ = _resting(_oquendo_material(), OQUENDO, tilt=tilt, lock=True)
+    sim, _ = _resting(_oquendo_material_in(dim), OQUENDO, tilt=tilt, lock=True, dim=dim)
     rec = _record(sim, int(0.1 / sim.dt), every=5)
     t, x, v = rec[:, 0], rec[:, 1], rec[:, 2]
     if sticks:
@@ -139,7 +152,7 @@ def test_oquendo_incline_sticks_below_static_angle(ratio, sticks):
             G * (math.sin(tilt) - MU_K * math.cos(tilt)), rel=1e-2)
     # a stuck grain rocks on the static spring: the velocity-Verlet energy of that
     # oscillation fluctuates by ~(omega dt)^2/8 of the spring energy (mu_s m g)^2/(2 kt)
-    m, h = sim.state.masses[0], R - sim.state.positions[0, 2]
+    m, h = sim.state.masses[0], R - sim.state.positions[0, dim - 1]
     kt = 8 * G_STAR * math.sqrt(R * h)
     _never_gains(rec[:, -1], (MU_S * m * G) ** 2 / (2 * kt), rel=1e-2)
 
