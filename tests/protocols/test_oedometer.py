@@ -118,6 +118,24 @@ def test_small_oedometer_ladder(oedometer):
     assert "level 2 (loading)" in (out / "run.log").read_text()
 
 
+def test_ladder_stops_early_when_the_load_outgrows_the_contact_law(tmp_path):
+    """Loads far beyond what the soft grains can carry (2 MPa on E = 1e8 Pa: mean Hertz
+    overlaps near 0.75 R) end the ladder at the first level that exceeds the overlap
+    limit, with the reason, and keep the levels done (2 kPa: overlaps about 0.01 R),
+    instead of losing the run."""
+    data = copy.deepcopy(SMALL)
+    data["protocol"].update(p0=2e3, factor=10.0, p_max=2e6)
+    out = tmp_path / "run"
+    results = execute(validate(data), out, show_progress=False, echo=lambda *a: None)
+    stop = results["stopped_early"]
+    done = [r["target_Pa"] for r in results["ladder"]]
+    assert 1 <= stop["level"] == len(done)
+    assert done == [2e3, 2e4, 2e5][:len(done)]
+    assert stop["target_Pa"] == pytest.approx(2e3 * 10 ** stop["level"])
+    assert "overlap exceeded 0.2" in stop["reason"]
+    assert f"ladder stopped at level {stop['level']}" in (out / "run.log").read_text()
+
+
 def test_interrupted_oedometer_resumes_to_the_same_numbers(oedometer, tmp_path):
     finished, results = oedometer
     (tmp_path / "run.toml").write_text(tomli_w.dumps(SMALL))

@@ -210,8 +210,10 @@ def test_oedometer_summary_without_enough_points(tmp_path, power_law):
     out = tmp_path / "out"
     (out / "reference" / "seed-1").mkdir(parents=True)
     (out / "reference" / "seed-1" / "results.json").write_text(json.dumps(
-        {"bauer": {"vertical": _bauer(0.6, 10.0), "trace": _bauer(0.6, 30.0)}}))
+        {"bauer": {"vertical": _bauer(0.6, 10.0), "trace": _bauer(0.6, 30.0)},
+         "stopped_early": {"level": 8, "target_Pa": 3.2e6, "reason": "overlap"}}))
     paths = bauer_sweep.summarize_sweep(out, sweeps.collect(sweep, out))
     assert out / "figures" / "hs_eta_trace.png" in paths
     text = (out / "bauer_vertical.md").read_text()
     assert "too few points for a power-law fit" in text and "| 0.600 ± 0.010 |" in text
+    assert "| 1/1, ladder stopped at 3.2 MPa |" in text

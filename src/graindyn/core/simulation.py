@@ -28,6 +28,11 @@ class SimulationError(RuntimeError):
     """A run stopped because the physics broke down (NaN, excessive overlap)."""
 
 
+class OverlapError(SimulationError):
+    """Some overlap exceeded ``overlap_limit`` of the smaller radius: the state is finite,
+    but the load is beyond what the contact law describes."""
+
+
 class Simulation:
     """A soft-particle DEM simulation (SI units).
 
@@ -297,7 +302,7 @@ class Simulation:
                         f"(t = {self.time:.6g} s): the time step is probably too large for "
                         f"the stiffness ({self.dt_report})")
                 if status == loop.OVERLAP:
-                    raise SimulationError(
+                    raise OverlapError(
                         f"an overlap exceeded {self.clock[loop.OVERLAP_LIMIT]:.3g} of the "
                         f"smaller radius at step {self.step} (t = {self.time:.6g} s): grains "
                         "are too soft for the load or the time step is too large")

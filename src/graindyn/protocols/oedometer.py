@@ -41,7 +41,7 @@ from ..analysis.energy import energy_budget
 from ..analysis.packing import coordination_number
 from ..config import build
 from ..config.models import BoxContainer, Config
-from ..core.simulation import Simulation
+from ..core.simulation import OverlapError, Simulation
 from ..core.walls import SERVO, Plane
 from .deposition import Deposition, save_figure
 
@@ -133,7 +133,11 @@ class Oedometer(Deposition):
         while state["level"] < len(self.levels):
             end = state["level_end"]
             level = state["level"]
-            sim.run(steps=end - sim.step, every=every, between=check, max_chunk=chunk)
+            try:
+                sim.run(steps=end - sim.step, every=every, between=check, max_chunk=chunk)
+            except OverlapError as err:
+                self._stop_early(state, err)
+                break
             if interrupted:
                 return "stopped"
             if state["level"] == level:
@@ -141,6 +145,18 @@ class Oedometer(Deposition):
         sim.walls.motion_kind[k] = 0
         sim.walls.velocity[k] = 0.0
         return "done"
+
+    def _stop_early(self, state, err):
+        """The load outgrew the contact law (an overlap above overlap_limit): end the
+        ladder at the current level, keep the levels done and say so."""
+        target, branch = self.levels[state["level"]]
+        state["stopped_early"] = {"level": state["level"], "branch": branch,
+                                  "target_Pa": target, "reason": str(err)}
+        state["level"] = len(self.levels)
+        state.pop("level_end", None)
+        self.log(f"ladder stopped at level {state['stopped_early']['level']} ({branch}, "
+                 f"p = {target:.4g} Pa): {err}; the results keep the "
+                 f"{len(state['rows'])} levels done")
 
     def _arm(self, sim, state, k):
         """Start the current level: the servo's target force and the level's deadline."""
@@ -243,6 +259,8 @@ class Oedometer(Deposition):
         out = {"deposition": states["settle"]["report"]}
         rows = states["load"]["rows"]
         out["ladder"] = rows
+        if "stopped_early" in states["load"]:
+            out["stopped_early"] = states["load"]["stopped_early"]
         out["bauer"] = fit_ladder(rows)
         out["bauer_note"] = (
             "vertical: p = stress on the piston (Oquendo Eq. 19, the paper's Tables 2-3); "

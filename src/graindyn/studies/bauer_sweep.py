@@ -75,7 +75,10 @@ def rows(points, measure):
                "display": first.display, "base_value": first.base_value,
                "reference": all(p.is_reference for p in members),
                "directories": [p.name for p in members], "runs": len(members),
-               "fitted": len(fits)}
+               "fitted": len(fits),
+               "stopped_early_Pa": [p.results["stopped_early"]["target_Pa"] for p in members
+                                    if p.status == "finished" and "stopped_early" in
+                                    (p.results or {})]}
         for name, name_err, key, err, scale in (
                 ("eta", "eta_err", "eta", "eta_err", 1.0),
                 ("h_s_MPa", "h_s_err_MPa", "h_s_Pa", "h_s_err_Pa", 1e-6),
@@ -127,7 +130,8 @@ def tables(points, measure, table_rows=None):
              f"e/e0 = exp(-(p/h_s)^eta) fitted to each run with p = {MEASURES[measure]}. "
              "Per value: the mean over the seeds ± the larger of the seed spread (sample "
              "standard deviation) and the propagated fit error. 'runs' counts the runs "
-             "with a fit of all runs of the value.", ""]
+             "with a fit of all runs of the value; a ladder stopped early (an overlap above "
+             "the limit) is fitted on the levels it reached.", ""]
     parameters = []
     for r in table_rows:
         if r["parameter"] is not None and r["parameter"] not in parameters:
@@ -150,14 +154,21 @@ def tables(points, measure, table_rows=None):
         for _, shown, r, is_ref in entries:
             lines.append(f"| {_fmt(shown)}{' (reference)' if is_ref else ''} | "
                          f"{pm(r['eta'], r['eta_err'])} | "
-                         f"{pm(r['h_s_MPa'], r['h_s_err_MPa'])} | {r['fitted']}/{r['runs']} |")
+                         f"{pm(r['h_s_MPa'], r['h_s_err_MPa'])} | {r['fitted']}/{r['runs']}"
+                         f"{_stopped(r)} |")
         lines.append("")
     if not parameters and reference is not None:
         lines += ["## reference", "", "| eta | h_s [MPa] | runs |", "|---:|---:|---:|",
                   f"| {pm(reference['eta'], reference['eta_err'])} | "
                   f"{pm(reference['h_s_MPa'], reference['h_s_err_MPa'])} | "
-                  f"{reference['fitted']}/{reference['runs']} |", ""]
+                  f"{reference['fitted']}/{reference['runs']}{_stopped(reference)} |", ""]
     return "\n".join(lines)
+
+
+def _stopped(row):
+    """', ladder stopped at p MPa' for runs whose ladder ended early (overlap limit)."""
+    stops = row.get("stopped_early_Pa") or []
+    return "".join(f", ladder stopped at {p / 1e6:.3g} MPa" for p in stops)
 
 
 def unique_rows(table_rows):
