@@ -85,15 +85,12 @@ def hertz_bounce(integrator, steps_per_collision, speed=1.0, onset=3.5):
     return abs(sim.state.velocities[0, 2] / speed - 1.0)
 
 
-def hertz_resting_energy_error(integrator, steps_per_period, periods=3, amplitude=0.9):
-    """A sphere (default Material) pressed on the plane z = 0 by gravity through an
-    elastic Hertz contact, released ``amplitude`` x the equilibrium overlap below
-    equilibrium: a smooth anharmonic oscillator that never leaves the plane.
-    dt = (small-amplitude period)/steps_per_period.  Returns the largest |E - E0|
-    over the run divided by the oscillation energy E0 - E_equilibrium, with E =
-    kinetic + gravitational + elastic, against its exact initial value."""
-    from ..analysis.energy import energy_budget
-    from ..core.triggers import Periodic
+def hertz_resting_oscillator(steps_per_period, amplitude=0.9):
+    """The oscillator of hertz_resting_energy_error: a sphere (default Material, radius
+    RADIUS) on the plane z = 0 under gravity GRAVITY, Hertz force rho (R - z)^1.5.
+    Returns a dict: ``material``, ``mass`` [kg], ``rho`` [N/m^1.5], ``z0`` [m] (released
+    at rest ``amplitude`` x the equilibrium overlap below equilibrium), ``z_eq`` [m],
+    ``dt`` [s] (small-amplitude period / steps_per_period) and ``potential(z)`` [J]."""
     from ..physics import reference as ref
 
     material = Material()
@@ -103,23 +100,37 @@ def hertz_resting_energy_error(integrator, steps_per_period, periods=3, amplitud
     rho = 4.0 / 3.0 * e_eff * math.sqrt(RADIUS)
     overlap_eq = (mass * GRAVITY / rho) ** (2.0 / 3.0)
     omega = math.sqrt(1.5 * rho * math.sqrt(overlap_eq) / mass)
-    steps = periods * steps_per_period
-    state = State.create(np.array([[0.0, 0.0, RADIUS - (1.0 + amplitude) * overlap_eq]]),
-                         np.array([RADIUS]), material.density)
-    sim = Simulation(state, [material], ContactModel("hertz", "none", "none"),
-                     walls=[Plane((0, 0, 0), (0, 0, 1))], gravity=(0.0, 0.0, -GRAVITY),
-                     dt=2.0 * math.pi / omega / steps_per_period, integrator=integrator,
-                     allow_large_dt=True)
-    z0 = RADIUS - (1.0 + amplitude) * overlap_eq
 
     def potential(z):
         return mass * GRAVITY * z + 0.4 * rho * max(RADIUS - z, 0.0) ** 2.5
 
+    return {"material": material, "mass": mass, "rho": rho,
+            "z0": RADIUS - (1.0 + amplitude) * overlap_eq, "z_eq": RADIUS - overlap_eq,
+            "dt": 2.0 * math.pi / omega / steps_per_period, "potential": potential}
+
+
+def hertz_resting_energy_error(integrator, steps_per_period, periods=3, amplitude=0.9):
+    """A sphere (default Material) pressed on the plane z = 0 by gravity through an
+    elastic Hertz contact, released ``amplitude`` x the equilibrium overlap below
+    equilibrium: a smooth anharmonic oscillator that never leaves the plane
+    (hertz_resting_oscillator).  dt = (small-amplitude period)/steps_per_period.
+    Returns the largest |E - E0| over the run divided by the oscillation energy
+    E0 - E_equilibrium, with E = kinetic + gravitational + elastic, against its exact
+    initial value."""
+    from ..analysis.energy import energy_budget
+    from ..core.triggers import Periodic
+
+    o = hertz_resting_oscillator(steps_per_period, amplitude)
+    state = State.create(np.array([[0.0, 0.0, o["z0"]]]), np.array([RADIUS]),
+                         o["material"].density)
+    sim = Simulation(state, [o["material"]], ContactModel("hertz", "none", "none"),
+                     walls=[Plane((0, 0, 0), (0, 0, 1))], gravity=(0.0, 0.0, -GRAVITY),
+                     dt=o["dt"], integrator=integrator, allow_large_dt=True)
     energies = []
-    sim.run(steps=steps, every=[(Periodic(steps=1),
-                                 lambda s: energies.append(energy_budget(s)["total"]))])
-    e0 = potential(z0)
-    return float(np.max(np.abs(np.array(energies) - e0)) / (e0 - potential(RADIUS - overlap_eq)))
+    sim.run(steps=periods * steps_per_period,
+            every=[(Periodic(steps=1), lambda s: energies.append(energy_budget(s)["total"]))])
+    e0 = o["potential"](o["z0"])
+    return float(np.max(np.abs(np.array(energies) - e0)) / (e0 - o["potential"](o["z_eq"])))
 
 
 def _rotate(q, v):
