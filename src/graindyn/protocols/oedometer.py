@@ -6,7 +6,9 @@ over the highest grain and becomes a stress-controlled wall (core.walls, servo m
 with target force p A for the levels p = p0, factor p0, ... up to p_max, and back down
 when ``unload`` is set.  At each level the sample relaxes until it is at rest:
 
-    |F_piston - p A| <= force_tolerance p A   and   E_kin + E_rot <= rest_ratio E_elastic,
+    |F_piston - p A| <= force_tolerance p A,
+    |F_bottom + F_side friction - F_piston - weight| <= force_tolerance p A   and
+    E_kin + E_rot <= rest_ratio E_elastic,
 
 checked between compiled chunks (at most servo_time/4 apart), or until level_max_time
 passes (the level is then recorded with at_rest = false).
@@ -203,12 +205,27 @@ class Oedometer(Deposition):
         return float(np.sum(1.5 * fn[ok] / overlap[ok]))
 
     def _at_rest(self, sim, k):
+        """Piston force on target, the sample in static equilibrium (bottom force plus
+        side-wall friction carry the piston force plus the weight, within the same
+        tolerance: an oscillation caught at its turning point has no kinetic energy but
+        does not balance) and the kinetic energy small against the elastic energy."""
         p = self.config.protocol
-        target = sim.walls.motion[k, 3]
-        if abs(sim.walls.normal_force(k) - target) > p.force_tolerance * target:
+        walls = sim.walls
+        target = walls.motion[k, 3]
+        piston = walls.normal_force(k)
+        if abs(piston - target) > p.force_tolerance * target:
+            return False
+        bottom = walls.normal_force(walls.index(self.bottom_wall))
+        friction = -float(np.sum(walls.force[[walls.index(n) for n in self.side_walls], 2]))
+        if abs(bottom + friction - piston - self._weight(sim)) > p.force_tolerance * target:
             return False
         e = energy_budget(sim)
         return e["kinetic"] + e["rotational"] <= p.rest_ratio * e["elastic"]
+
+    @staticmethod
+    def _weight(sim):
+        """Weight [N] of the free grains."""
+        return float(np.sum(sim.state.masses[sim.state.fixed == 0])) * float(-sim.clock[5])
 
     def _finish_level(self, sim, state, k, at_rest):
         target, branch = self.levels[state["level"]]
@@ -242,7 +259,7 @@ class Oedometer(Deposition):
         top = walls.normal_force(piston) / self.cross_section
         bot = walls.normal_force(bottom) / self.cross_section
         vertical = 0.5 * (top + bot)
-        weight = float(np.sum(s.masses[s.fixed == 0])) * float(-sim.clock[5])
+        weight = self._weight(sim)
         e = energy_budget(sim)
         return {"sigma_top_Pa": top, "sigma_bottom_Pa": bot, "sigma_lateral_Pa": lateral,
                 "K0": lateral / vertical if vertical > 0 else float("nan"),
