@@ -155,10 +155,10 @@ def test_failed_point_is_reported_and_the_others_finish(interrupted):
     out, second = interrupted["out"], interrupted["second"]
     assert interrupted["code"] == 1, second
     assert "Traceback" not in second
-    assert "FAILED overlap_limit=1e-6/seed-1: SimulationError: an overlap exceeded" in second
+    assert "FAILED overlap_limit=1e-6/seed-1: OverlapError: an overlap exceeded" in second
     assert "2 of 3 runs finished" in second and "1 run(s) failed" in second
     error = (out / "overlap_limit=1e-6" / "seed-1" / "error.txt").read_text()
-    assert error.startswith("SimulationError") and "Traceback" in error
+    assert error.startswith("OverlapError") and "Traceback" in error
     summary = json.loads((out / "summary.json").read_text())
     assert summary["runs"] == {"finished": 2, "failed": 1, "pending": 0}
     rows = (out / "summary.csv").read_text().splitlines()
