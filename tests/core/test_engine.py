@@ -422,6 +422,28 @@ def test_huge_time_step_raises_when_checked_every_step():
         sim.run(steps=200)
 
 
+def test_grain_behind_a_wall_is_refused_before_the_first_step():
+    """A grain that starts half behind a wall (overlap 1.5 R) stops the run before any
+    motion, with the cause, instead of being flung away."""
+    st = gd.State.create([[0, 0, -0.5 * R], [0, 0, 3 * R]], [R, R], RHO)
+    sim = gd.Simulation(st, [gd.Material(density=RHO)], gd.ContactModel("hertz"),
+                        walls=[gd.Plane((0, 0, 0), (0, 0, 1))], gravity=(0, 0, 0))
+    with pytest.raises(gd.SimulationError, match="before the first step.*behind a wall"):
+        sim.run(steps=10)
+    assert sim.step == 0 and sim.state.positions[0, 2] == -0.5 * R
+
+
+def test_non_finite_position_is_a_simulation_error():
+    """A NaN coordinate stops the run with the non-finite message (the neighbour
+    rebuild cannot grid it and must not try)."""
+    st = gd.State.create([[0, 0, 0], [3 * R, 0, 0]], [R, R], RHO)
+    st.positions[1, 0] = np.nan
+    sim = gd.Simulation(st, [gd.Material(density=RHO)], gd.ContactModel("hertz"),
+                        gravity=(0, 0, 0))
+    with pytest.raises(gd.SimulationError, match="non-finite"):
+        sim.run(steps=10)
+
+
 def test_time_step_above_safe_fraction_is_rejected():
     t_r = _colliding_pair(None, False).dt_report["critical_time_s"]
     with pytest.raises(ValueError, match="Rayleigh time"):

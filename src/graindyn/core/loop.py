@@ -106,6 +106,17 @@ def _energies(velocities, angular_velocities, positions, masses, inertias, fixed
 
 
 @kernel
+def _all_finite(positions):
+    """True when every coordinate is finite (checked before a neighbour rebuild, which
+    cannot grid NaN or infinite positions)."""
+    for i in range(positions.shape[0]):
+        for d in range(positions.shape[1]):
+            if not math.isfinite(positions[i, d]):
+                return False
+    return True
+
+
+@kernel
 def _checks(grains, counters, clock):
     """NaN, overlap and stop-condition checks; returns a status code."""
     (positions, velocities, angular_velocities, orientations, forces, torques, accelerations,
@@ -186,6 +197,8 @@ def run_chunk(model, params, grains, pairs, walls, periodic, clock, counters,
                 wall_move = max(wall_move, math.sqrt(d2) + 2.0 * math.sqrt(v2) * dt)
             rebuild_now = grain_move + max(grain_move, wall_move) > skin
         if rebuild_now:
+            if not _all_finite(positions):
+                return NAN, s
             needed, wall_needed = rebuild(
                 positions, radii, skin, flag, lo, length, start, partners, history,
                 scratch_start, scratch_partners, scratch_history, reverse_start, reverse_pairs,
@@ -203,6 +216,9 @@ def run_chunk(model, params, grains, pairs, walls, periodic, clock, counters,
             clock[MOVE] = _after(integrator, 0, 0.0, counters, gravity, grains, pairs, walls,
                                  periodic, integrator_history, block_scratch)
             counters[PRIMED] = 1
+            # grains that start too deep in each other or in a wall: stop before moving
+            if max_overlap.size > 0 and max_overlap.max() > clock[OVERLAP_LIMIT]:
+                return OVERLAP, s
         for stage in range(STAGES[integrator]):
             before_force(integrator, stage, dt, counters[HISTORY_STEPS] > 0, positions,
                          velocities, angular_velocities, orientations, accelerations,

@@ -58,7 +58,9 @@ def _grid(positions, cutoff, periodic_flag, periodic_lo, periodic_length):
                 b = max(b, positions[i, d])
             lo[d] = a
             lengths[d] = b - a
-        counts[d] = max(1, int(lengths[d] / cutoff))
+        # grains flung far apart by a blow-up: cap before converting to int (the
+        # coarsening below brings the grid back to O(N) cells)
+        counts[d] = max(1, int(min(lengths[d] / cutoff, 1e6)))
     # a dilute cloud spread far apart: coarsen so that the cells stay O(N)
     while counts[0] * counts[1] * counts[2] > 4 * n + 64:
         for d in range(3):

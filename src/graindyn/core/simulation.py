@@ -297,15 +297,24 @@ class Simulation:
                 if status == loop.CONDITION:
                     return "condition"
                 if status == loop.NAN:
+                    report = self.dt_report
                     raise SimulationError(
                         f"non-finite position, velocity or force at step {self.step} "
-                        f"(t = {self.time:.6g} s): the time step is probably too large for "
-                        f"the stiffness ({self.dt_report})")
+                        f"(t = {self.time:.6g} s): the time step may be too large for the "
+                        f"stiffness (dt = {self.dt:.3g} s, {report['fraction']:.3g} of the "
+                        f"{report['criterion']} {report['critical_time_s']:.3g} s), or "
+                        "grains started deep inside each other or a wall")
                 if status == loop.OVERLAP:
+                    limit = self.clock[loop.OVERLAP_LIMIT]
+                    if self.step == 0:
+                        raise OverlapError(
+                            f"an overlap exceeds {limit:.3g} of the smaller radius before the "
+                            "first step: grains start deep inside each other or behind a "
+                            "wall (check the initial positions and the container)")
                     raise OverlapError(
-                        f"an overlap exceeded {self.clock[loop.OVERLAP_LIMIT]:.3g} of the "
-                        f"smaller radius at step {self.step} (t = {self.time:.6g} s): grains "
-                        "are too soft for the load or the time step is too large")
+                        f"an overlap exceeded {limit:.3g} of the smaller radius at step "
+                        f"{self.step} (t = {self.time:.6g} s): grains are too soft for the "
+                        "load or the time step is too large")
                 if between is not None and between(self):
                     return "stopped"
         finally:
