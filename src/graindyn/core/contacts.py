@@ -9,13 +9,13 @@ velocity of i at that point is v_i - v_j - (R'_i w_i + R'_j w_j) x n.
 """
 import math
 
-from .._jit import kernel, parallel, prange, scalar
+from .._jit import inlined, parallel, prange, scalar
 from ..physics.contact import contact_force, contact_release
 from .neighbors import min_image
 from .walls import wall_distance
 
 
-@kernel
+@inlined
 def contact_response(model, params, a, b, overlap, lever_i, lever_j, r_eff, m_eff, nx, ny, nz,
                      dvx, dvy, dvz, wx, wy, wz, dwx, dwy, dwz, history, k, dt):
     """Force on i (3) [N] and the torques on i and j [N m]: the lever part (n x f_t)
