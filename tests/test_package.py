@@ -48,3 +48,16 @@ def test_changing_law_or_parameter_does_not_recompile():
     assert run(gd.ContactModel("hertz", "viscoelastic", "coulomb"),
                gd.Material(youngs_modulus=5e7, gamma_n=1e4, friction_sliding=0.2))
     assert len(loop.run_chunk.signatures) == before == 1
+
+
+def test_readme_quick_tour_runs(capsys):
+    """The README's Python quick tour runs as printed (500 grains settle)."""
+    import re
+
+    readme = (SRC.parents[1] / "README.md").read_text()
+    code = re.search(r"```python\n(.*?)```", readme, re.S).group(1)
+    scope = {}
+    exec(compile(code, "README.md", "exec"), scope)
+    report = scope["report"]
+    assert 0.45 < report["packing_fraction"] < 0.7
+    assert 3.0 < report["coordination_number"] < 7.0
