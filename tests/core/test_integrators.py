@@ -102,9 +102,10 @@ def _twin_energy_error(xi, steps_per_period, periods=3):
 def test_g1_error_ratio_is_the_schemes_own():
     """G1, "the right error ratio": the engine's energy errors (and so their ratio, about
     27 on this problem) equal those of the two schemes written out from Oquendo Eq.
-    11-15 in plain Python.  The ratio belongs to the problem, not the code: the same two
-    schemes give 102 on a harmonic oscillator and 19 on a pendulum of amplitude 2 rad
-    (VALIDATION's 19)."""
+    11-15 in plain Python.  The ratio belongs to the scheme's form and the problem, not
+    to the code: Eq. 11-15 (position form) give 102 on a harmonic oscillator and 27.5 on
+    a pendulum of amplitude 2 rad; the velocity form of the same scheme gives 19 on that
+    pendulum (VALIDATION's 19)."""
     for name, xi, n in (("velocity_verlet", 0.0, 40),
                         ("optimized_velocity_verlet", 0.1931833275037836, 40)):
         assert hertz_resting_energy_error(name, n) == pytest.approx(
