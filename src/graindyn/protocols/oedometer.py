@@ -216,11 +216,16 @@ class Oedometer(Deposition):
         if abs(piston - target) > p.force_tolerance * target:
             return False
         bottom = walls.normal_force(walls.index(self.bottom_wall))
-        friction = -float(np.sum(walls.force[[walls.index(n) for n in self.side_walls], 2]))
+        friction = self._side_friction(sim)
         if abs(bottom + friction - piston - self._weight(sim)) > p.force_tolerance * target:
             return False
         e = energy_budget(sim)
         return e["kinetic"] + e["rotational"] <= p.rest_ratio * e["elastic"]
+
+    def _side_friction(self, sim):
+        """Vertical force [N] the side walls carry by friction (upward on the grains)."""
+        walls = sim.walls
+        return -float(np.sum(walls.force[[walls.index(n) for n in self.side_walls], 2]))
 
     @staticmethod
     def _weight(sim):
@@ -265,7 +270,7 @@ class Oedometer(Deposition):
                 "K0": lateral / vertical if vertical > 0 else float("nan"),
                 "trace_Pa": top + 2.0 * lateral, "void_ratio": (self.cross_section * height
                                                                - solid) / solid,
-                "height_m": height, "side_friction_N": -float(np.sum(walls.force[sides, 2])),
+                "height_m": height, "side_friction_N": self._side_friction(sim),
                 "weight_N": weight, "coordination": coordination_number(sim),
                 "kinetic_J": e["kinetic"] + e["rotational"], "elastic_J": e["elastic"],
                 "time_s": sim.time, "step": sim.step}
