@@ -163,6 +163,27 @@ def test_g2_exact_rotation_for_the_other_schemes():
     assert _angle_error("velocity_verlet", 50) < 1e-12
 
 
+@pytest.mark.parametrize("angle", [1e-9, 1e-4, 0.05, 0.1999, 0.2001, 0.7, 3.0])
+def test_rotation_series_matches_the_trigonometric_rotation(angle):
+    """Below |p| = 0.2 rad the exact rotation takes its coefficients from Taylor series:
+    on both sides of that switch it equals the quaternion product with
+    (cos(|p|/2), sin(|p|/2) p/|p|), written out here independently, to round-off."""
+    from graindyn.core.integrators.rotation import rotate_quaternion
+
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        q = rng.normal(size=4)
+        q /= np.linalg.norm(q)
+        axis = rng.normal(size=3)
+        p = angle * axis / np.linalg.norm(axis)
+        w, (x, y, z) = math.cos(angle / 2), math.sin(angle / 2) * p / angle
+        expected = (w * q[0] - x * q[1] - y * q[2] - z * q[3],
+                    w * q[1] + x * q[0] + y * q[3] - z * q[2],
+                    w * q[2] - x * q[3] + y * q[0] + z * q[1],
+                    w * q[3] + x * q[2] - y * q[1] + z * q[0])
+        assert rotate_quaternion(*q, *p) == pytest.approx(expected, abs=1e-15)
+
+
 def test_g2_symmetric_top_precession():
     """G2: a torque-free symmetric top (I = 1, 1, 2) precesses in the body frame at
     W = w3 (I3 - I1)/I1 within 1e-3 at dt |w| = 0.01, over ten periods; energy and |L|

@@ -102,11 +102,12 @@ def pair_forces(model, params, positions, velocities, angular_velocities, radii,
                 m_eff = masses[j]
             else:
                 m_eff = m_i * masses[j] / (m_i + masses[j])
-            share = overlap / rsum
+            inv_sum = 1.0 / rsum
+            share = overlap * inv_sum
             lever_i = r_i - share * r_j
             lever_j = r_j - share * r_i
             out = contact_response(
-                model, params, a, materials[j], overlap, lever_i, lever_j, r_i * r_j / rsum,
+                model, params, a, materials[j], overlap, lever_i, lever_j, r_i * r_j * inv_sum,
                 m_eff, dx * inv, dy * inv, dz * inv, vxi - velocities[j, 0],
                 vyi - velocities[j, 1], vzi - velocities[j, 2],
                 lever_i * wxi + lever_j * angular_velocities[j, 0],

@@ -34,8 +34,10 @@ _CUNDALL = TANGENTIAL["cundall_strack"]
 _MINDLIN = TANGENTIAL["mindlin"]
 _KARRECH = TANGENTIAL["karrech"]
 _OQUENDO = TANGENTIAL["oquendo"]
+_ROLL_NONE = ROLLING["none"]
 _ROLL_CONSTANT = ROLLING["constant"]
 _ROLL_EPSD = ROLLING["epsd"]
+_TWIST_NONE = TWISTING["none"]
 _TWIST_OQUENDO = TWISTING["oquendo"]
 _TWIST_CONSTANT = TWISTING["constant"]
 _TWIST_EPSD = TWISTING["epsd"]
@@ -132,11 +134,14 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
     tangential = model[2]
     ht = model[_H_TANGENTIAL]
     mx = my = mz = 0.0
-    # rolling part of the relative rotation (tangent-plane component) and twist rate
-    wn = wx * nx + wy * ny + wz * nz
-    wrx = wx - wn * nx
-    wry = wy - wn * ny
-    wrz = wz - wn * nz
+    # rolling part of the relative rotation (tangent-plane component) and twist rate,
+    # for the laws that use them
+    wn = wrx = wry = wrz = 0.0
+    if tangential == _OQUENDO or model[3] != _ROLL_NONE or model[4] != _TWIST_NONE:
+        wn = wx * nx + wy * ny + wz * nz
+        wrx = wx - wn * nx
+        wry = wy - wn * ny
+        wrz = wz - wn * nz
     if tangential == _COULOMB:
         ftx, fty, ftz, dissipated_t = tangential_coulomb_force(params[a, b, _MU], cap, vtx, vty,
                                                                vtz, dt)

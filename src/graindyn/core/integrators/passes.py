@@ -89,9 +89,10 @@ def after_force(integrator, stage, dt, started, dim, gravity, pairs, wall_start,
                 angular_accelerations, fixed, periodic_flag, periodic_length, history,
                 block_scratch):
     """Gather contact forces onto grains, correct velocities with the new accelerations
-    (dt = 0 only stores the accelerations at start-up), and return the largest
-    displacement since the last neighbour build plus a bound on the next drift,
-    |r - r_ref| + |v| dt + |a| dt^2/2 [m], for the half-skin rule (the higher-order
+    (dt = 0 only stores the accelerations at start-up), and return a bound on how far
+    any grain may be from where it was at the last neighbour build by the end of the
+    next drift, max |r - r_ref| + max |v| dt + max |a| dt^2/2 [m] (maxima over grains),
+    for the half-skin rule (the higher-order
     terms of Beeman and Gear are O(dt^3), far below the skin).  One pass over grains,
     in fixed blocks, so the result does not depend on thread timing."""
     (start, partners, pair_history, scratch_start, scratch_partners, scratch_history,
@@ -100,7 +101,11 @@ def after_force(integrator, stage, dt, started, dim, gravity, pairs, wall_start,
     nblock = block_scratch.size
     rot = SLOTS[integrator]
     for b in prange(nblock):
-        best = 0.0
+        # the block's largest |r - r_ref|^2, |v|^2 and |a|^2: the bound built from them
+        # is at least every grain's own (square roots once per block, not per grain)
+        top_d2 = 0.0
+        top_v2 = 0.0
+        top_a2 = 0.0
         for i in range(b * n // nblock, (b + 1) * n // nblock):
             f = gather_grain(i, masses[i], gravity, start, reverse_start, reverse_pairs,
                              pair_force, pair_torque_i, pair_torque_j, wall_start, wall_force,
@@ -139,6 +144,9 @@ def after_force(integrator, stage, dt, started, dim, gravity, pairs, wall_start,
                 d2 += dx * dx
                 v2 += velocities[i, d] * velocities[i, d]
                 a2 += accelerations[i, d] * accelerations[i, d]
-            best = max(best, math.sqrt(d2) + math.sqrt(v2) * dt + 0.5 * math.sqrt(a2) * dt * dt)
-        block_scratch[b] = best
+            top_d2 = max(top_d2, d2)
+            top_v2 = max(top_v2, v2)
+            top_a2 = max(top_a2, a2)
+        block_scratch[b] = math.sqrt(top_d2) + math.sqrt(top_v2) * dt \
+            + 0.5 * math.sqrt(top_a2) * dt * dt
     return block_scratch.max()

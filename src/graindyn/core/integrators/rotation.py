@@ -15,13 +15,26 @@ from ..._jit import scalar
 @scalar
 def rotate_quaternion(q0, q1, q2, q3, px, py, pz):
     """exp(p/2) q: q turned by the exact rotation of angle |p| [rad] about the world-frame
-    rotation vector p (the step's angular displacement, e.g. w dt)."""
-    angle = math.sqrt(px * px + py * py + pz * pz)
-    if angle == 0.0:
+    rotation vector p (the step's angular displacement, e.g. w dt).
+
+    With u = |p|^2/4 the coefficients are cos(|p|/2) - 1 and sin(|p|/2)/|p|; below
+    |p| = 0.2 rad (every practical step) they come from their Taylor series in u to
+    u^5, whose truncation error is below 1e-18 relative: no square root and no
+    trigonometric call per grain and step."""
+    u = 0.25 * (px * px + py * py + pz * pz)
+    if u == 0.0:
         return q0, q1, q2, q3
-    sq = math.sin(0.25 * angle)
-    c = -2.0 * sq * sq                       # cos(angle/2) - 1
-    s = math.sin(0.5 * angle) / angle
+    if u < 0.01:
+        # Horner forms of sum_k (-u)^k/(2k)! (k >= 1) and sum_k (-u)^k/(2k+1)!/2
+        c = u * (-0.5 + u * (1.0 / 24.0 + u * (-1.0 / 720.0 + u * (1.0 / 40320.0 + u * (
+            -1.0 / 3628800.0)))))
+        s = 0.5 + u * (-1.0 / 12.0 + u * (1.0 / 240.0 + u * (-1.0 / 10080.0 + u * (
+            1.0 / 725760.0 + u * (-1.0 / 79833600.0)))))
+    else:
+        angle = 2.0 * math.sqrt(u)
+        sq = math.sin(0.25 * angle)
+        c = -2.0 * sq * sq                   # cos(angle/2) - 1
+        s = math.sin(0.5 * angle) / angle
     ax = s * px
     ay = s * py
     az = s * pz
