@@ -1,7 +1,10 @@
 """Contact forces: pair geometry -> physics.contact_force -> per-contact arrays, and the
 deterministic gather of those arrays onto grains (each grain sums its own contacts in
-fixed order: no atomics, same numbers for the same thread count).  The gather runs
-inside the integrator's pass over grains (integrators.after_force).
+fixed order: no atomics, same numbers for the same thread count).  A grain's pairs are
+listed with the grain of lower index, which computes them: it sums their force and
+torque on itself as it goes (``own``) and stores for each pair only what the other
+grain needs (the force, and the torque on that grain).  The gather runs inside the
+integrator's pass over grains (integrators.after_force).
 
 Geometry (Oquendo Eq. 3-4): n = (r_i - r_j)/|r_i - r_j|, overlap h = R_i + R_j - |r_i - r_j|,
 the contact point sits at R'_i = R_i - h R_j/(R_i + R_j) from grain i, and the relative
@@ -42,9 +45,12 @@ def contact_response(model, params, a, b, overlap, lever_i, lever_j, r_eff, m_ef
 @parallel
 def pair_forces(model, params, positions, velocities, angular_velocities, radii, masses,
                 materials, fixed, periodic_flag, periodic_length, start, partners, history,
-                pair_force, pair_torque_i, pair_torque_j, max_overlap, dt):
+                pair_force, own, pair_torque_j, max_overlap, dt):
     """Forces of every listed pair; zero (and history reset) for pairs not touching.
 
+    pair_force[k] [N] is the force on the first grain i of pair k and pair_torque_j[k]
+    [N m] the torque on its second grain; own[i] (6) is the sum of the forces and
+    torques on i of the pairs it lists, in list order.
     max_overlap[i] keeps the largest overlap / min(R_i, R_j) of grain i's pairs since
     the loop last read and reset it.
     Returns the energies dissipated in the step, normal and tangential [J].
@@ -69,6 +75,7 @@ def pair_forces(model, params, positions, velocities, angular_velocities, radii,
         r_i = radii[i]
         m_i = masses[i]
         a = materials[i]
+        fx = fy = fz = tx = ty = tz = 0.0
         for k in range(start[i], start[i + 1]):
             j = partners[k]
             dx = min_image(xi - positions[j, 0], px, lx)
@@ -89,7 +96,6 @@ def pair_forces(model, params, positions, velocities, angular_velocities, radii,
                         history[k, h] = 0.0
                     for d in range(3):
                         pair_force[k, d] = 0.0
-                        pair_torque_i[k, d] = 0.0
                         pair_torque_j[k, d] = 0.0
                 continue
             dist = math.sqrt(d2)
@@ -117,10 +123,21 @@ def pair_forces(model, params, positions, velocities, angular_velocities, radii,
                 wzi - angular_velocities[j, 2], history, k, dt)
             for d in range(3):
                 pair_force[k, d] = out[d]
-                pair_torque_i[k, d] = out[3 + d]
                 pair_torque_j[k, d] = out[6 + d]
+            fx += out[0]
+            fy += out[1]
+            fz += out[2]
+            tx += out[3]
+            ty += out[4]
+            tz += out[5]
             dissipated_n += out[9]
             dissipated_t += out[10]
+        own[i, 0] = fx
+        own[i, 1] = fy
+        own[i, 2] = fz
+        own[i, 3] = tx
+        own[i, 4] = ty
+        own[i, 5] = tz
         max_overlap[i] = worst
     return dissipated_n, dissipated_t
 
@@ -180,17 +197,17 @@ def _add_contact(fx, fy, fz, tx, ty, tz, force, sign, torque, k):
 
 
 @scalar
-def gather_grain(i, mass, gravity, start, reverse_start, reverse_pairs, pair_force,
-                 pair_torque_i, pair_torque_j, wall_start, wall_force, wall_torque):
-    """Force [N] and torque [N m] on grain i: m_i g plus its pair contacts (as first
-    member, then as second member) and its wall contacts, always in this order."""
-    fx = mass * gravity[0]
-    fy = mass * gravity[1]
-    fz = mass * gravity[2]
-    tx = ty = tz = 0.0
-    for k in range(start[i], start[i + 1]):
-        fx, fy, fz, tx, ty, tz = _add_contact(fx, fy, fz, tx, ty, tz, pair_force, 1.0,
-                                              pair_torque_i, k)
+def gather_grain(i, mass, gravity, own, reverse_start, reverse_pairs, pair_force,
+                 pair_torque_j, wall_start, wall_force, wall_torque):
+    """Force [N] and torque [N m] on grain i: m_i g plus its pair contacts (the sum of
+    those it lists, then one by one those that list it) and its wall contacts, always
+    in this order."""
+    fx = mass * gravity[0] + own[i, 0]
+    fy = mass * gravity[1] + own[i, 1]
+    fz = mass * gravity[2] + own[i, 2]
+    tx = own[i, 3]
+    ty = own[i, 4]
+    tz = own[i, 5]
     for s in range(reverse_start[i], reverse_start[i + 1]):
         fx, fy, fz, tx, ty, tz = _add_contact(fx, fy, fz, tx, ty, tz, pair_force, -1.0,
                                               pair_torque_j, reverse_pairs[s])

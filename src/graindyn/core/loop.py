@@ -54,14 +54,14 @@ def evaluate_forces(model, params, grains, pairs, walls, periodic, gravity, dt):
      angular_accelerations, radii, masses, inertias, materials, fixed, reference_positions,
      max_overlap) = grains
     (start, partners, history, scratch_start, scratch_partners, scratch_history,
-     reverse_start, reverse_pairs, pair_force, pair_torque_i, pair_torque_j) = pairs
+     reverse_start, reverse_pairs, pair_force, own, pair_torque_j) = pairs
     (kind, geometry, motion_kind, motion, base, offset, velocity, material, force,
      reference_offset, wall_start, wall_ids, wall_history, scratch_wall_start,
      scratch_wall_ids, scratch_wall_history, contact_force, contact_torque) = walls
     flag, lo, length = periodic
     dn, dt_ = pair_forces(model, params, positions, velocities, angular_velocities, radii,
                           masses, materials, fixed, flag, length, start, partners, history,
-                          pair_force, pair_torque_i, pair_torque_j, max_overlap, dt)
+                          pair_force, own, pair_torque_j, max_overlap, dt)
     wn, wt = wall_forces(model, params, positions, velocities, angular_velocities, radii,
                          masses, materials, kind, geometry, offset, velocity, material,
                          wall_start, wall_ids, wall_history, contact_force, contact_torque,
@@ -174,7 +174,7 @@ def run_chunk(model, params, grains, pairs, walls, periodic, clock, counters,
      angular_accelerations, radii, masses, inertias, materials, fixed, reference_positions,
      max_overlap) = grains
     (start, partners, history, scratch_start, scratch_partners, scratch_history,
-     reverse_start, reverse_pairs, pair_force, pair_torque_i, pair_torque_j) = pairs
+     reverse_start, reverse_pairs, pair_force, own, pair_torque_j) = pairs
     (kind, geometry, motion_kind, motion, base, offset, velocity, material, force,
      reference_offset, wall_start, wall_ids, wall_history, scratch_wall_start,
      scratch_wall_ids, scratch_wall_history, contact_force, contact_torque) = walls

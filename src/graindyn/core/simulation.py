@@ -18,8 +18,10 @@ from .walls import Walls
 
 
 _PAIR_ARRAYS = ("start", "partners", "history", "scratch_start", "scratch_partners",
-                "scratch_history", "reverse_start", "reverse_pairs", "force", "torque_i",
+                "scratch_history", "reverse_start", "reverse_pairs", "force", "own",
                 "torque_j")
+# rewritten by every force evaluation before it is read: not part of a snapshot
+_TRANSIENT = ("pairs/own",)
 _WALL_CONTACT_ARRAYS = ("start", "ids", "history", "scratch_start", "scratch_ids",
                         "scratch_history", "force", "torque")
 
@@ -135,7 +137,7 @@ class Simulation:
         self.pairs = (start, partners, history, np.zeros(n + 1, np.int64),
                       np.zeros(capacity, np.uint32), np.zeros((capacity, h)),
                       np.zeros(n + 1, np.int64), np.zeros(capacity, np.uint32),
-                      np.zeros((capacity, 3)), np.zeros((capacity, 3)), np.zeros((capacity, 3)))
+                      np.zeros((capacity, 3)), np.zeros((n, 6)), np.zeros((capacity, 3)))
 
     def _allocate_walls(self, capacity):
         n, h, w = self.state.n, self.history_size, self.walls
@@ -333,7 +335,8 @@ class Simulation:
                                      ("wall_contacts", _WALL_CONTACT_ARRAYS,
                                       self.wall_contacts)):
             arrays.update({f"{group}/{k}": v for k, v in zip(names, values)
-                           if not k.startswith("scratch_")})
+                           if not k.startswith("scratch_")
+                           and f"{group}/{k}" not in _TRANSIENT})
         w = self.walls
         arrays.update({"walls/offset": w.offset, "walls/base": w.base,
                        "walls/velocity": w.velocity, "walls/force": w.force,
@@ -362,7 +365,8 @@ class Simulation:
         for k, v in self.integrator_state.items():
             put(v, f"integrator/{k}")
         def lists(group, names):  # scratch arrays are rebuilt empty, like their twins
-            return tuple(np.zeros_like(arrays[f"{group}/{k.removeprefix('scratch_')}"])
+            return tuple(np.zeros((self.state.n, 6)) if f"{group}/{k}" in _TRANSIENT
+                         else np.zeros_like(arrays[f"{group}/{k.removeprefix('scratch_')}"])
                          if k.startswith("scratch_") else np.array(arrays[f"{group}/{k}"])
                          for k in names)
 

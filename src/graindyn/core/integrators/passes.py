@@ -96,7 +96,7 @@ def after_force(integrator, stage, dt, started, dim, gravity, pairs, wall_start,
     terms of Beeman and Gear are O(dt^3), far below the skin).  One pass over grains,
     in fixed blocks, so the result does not depend on thread timing."""
     (start, partners, pair_history, scratch_start, scratch_partners, scratch_history,
-     reverse_start, reverse_pairs, pair_force, pair_torque_i, pair_torque_j) = pairs
+     reverse_start, reverse_pairs, pair_force, own, pair_torque_j) = pairs
     n = masses.size
     nblock = block_scratch.size
     rot = SLOTS[integrator]
@@ -107,9 +107,8 @@ def after_force(integrator, stage, dt, started, dim, gravity, pairs, wall_start,
         top_v2 = 0.0
         top_a2 = 0.0
         for i in range(b * n // nblock, (b + 1) * n // nblock):
-            f = gather_grain(i, masses[i], gravity, start, reverse_start, reverse_pairs,
-                             pair_force, pair_torque_i, pair_torque_j, wall_start, wall_force,
-                             wall_torque)
+            f = gather_grain(i, masses[i], gravity, own, reverse_start, reverse_pairs,
+                             pair_force, pair_torque_j, wall_start, wall_force, wall_torque)
             for d in range(3):
                 forces[i, d] = f[d]
                 torques[i, d] = f[3 + d]
