@@ -16,7 +16,7 @@ import graindyn as gd
 from graindyn.config import ConfigError, validate
 from graindyn.core.walls import Motion, Plane
 from graindyn.output import checkpoint
-from graindyn.protocols.oedometer import ladder
+from graindyn.protocols.oedometer import MIN_AT_REST, fit_ladder, ladder
 from graindyn.runner import execute
 
 
@@ -56,6 +56,36 @@ def test_ladder_doubles_up_to_p_max_and_back():
     (lambda c: c["protocol"].update(piston_material="brass"), "piston_material"),
     (lambda c: c["run"].update(dim=2, gravity=[0, -9.81, 0]), "dim = 3"),
 ])
+def _bauer_rows(moving):
+    """Nine loading levels on Bauer's law (e0 = 0.8, h_s = 500 MPa, eta = 0.6) and one
+    unloading level; the levels in ``moving`` are not at rest and 1 % too loose."""
+    rows = []
+    for level, p in enumerate(12.5e3 * 2.0 ** np.arange(9)):
+        e = 0.8 * np.exp(-(p / 5e8) ** 0.6) * (1.01 if level in moving else 1.0)
+        rows.append({"level": level, "branch": "loading", "at_rest": level not in moving,
+                     "sigma_top_Pa": p, "trace_Pa": 2.2 * p, "void_ratio": e})
+    return rows + [dict(rows[-2], level=9, branch="unloading", void_ratio=0.7)]
+
+
+def test_bauer_fit_leaves_out_levels_not_at_rest():
+    """A level still creeping when its time ran out does not enter the fit: the law is
+    recovered exactly from the others, and the fit says which levels it used."""
+    fit = fit_ladder(_bauer_rows(moving={0}))["vertical"]
+    assert fit["levels"] == list(range(1, 9)) and fit["not_at_rest"] == [0]
+    assert fit["h_s_Pa"] == pytest.approx(5e8, rel=1e-6)
+    assert fit["eta"] == pytest.approx(0.6, rel=1e-6)
+    assert fit["e0"] == pytest.approx(0.8, rel=1e-9)
+
+
+def test_bauer_fit_uses_every_level_when_too_few_are_at_rest():
+    """With fewer than MIN_AT_REST levels at rest all loading levels are fitted, and the
+    ones not at rest are listed."""
+    moving = set(range(9 - MIN_AT_REST + 1))
+    fit = fit_ladder(_bauer_rows(moving=moving))["trace"]
+    assert fit["levels"] == list(range(9)) and fit["not_at_rest"] == sorted(moving)
+    assert fit["rms"] > 1e-3
+
+
 def test_bad_oedometer_configs_are_refused(change, message):
     data = copy.deepcopy(SMALL)
     change(data)

@@ -30,9 +30,10 @@ area), K0 = lateral / mean vertical stress, the void ratio e = (V - V_s)/V_s fro
 piston height (V_s: sum of grain volumes, overlaps neglected), the force the side walls
 carry by friction (Janssen), coordination number and kinetic energy.
 
-Bauer's law is fitted on the loading branch with two pressure measures: the vertical
-stress on the piston (Oquendo Eq. 19, p) and the trace of the stress,
-sigma_v + 2 sigma_lateral = 3 p_s (Bauer's original mean stress; the abstract's "3p").
+Bauer's law is fitted on the loading levels at rest (fit_ladder) with two pressure
+measures: the vertical stress on the piston (Oquendo Eq. 19, p) and the trace of the
+stress, sigma_v + 2 sigma_lateral = 3 p_s (Bauer's original mean stress; the
+abstract's "3p").
 """
 import math
 
@@ -49,6 +50,8 @@ from .deposition import Deposition, save_figure
 
 PISTON = "piston"
 MEASURES = {"vertical": "sigma_top_Pa", "trace": "trace_Pa"}
+# fewest loading levels at rest for a fit on those alone (Bauer's law has 3 parameters)
+MIN_AT_REST = 5
 BAND = 0.1  # the piston moves at full speed while the force error exceeds 10 % of the target
 
 
@@ -335,15 +338,25 @@ class Oedometer(Deposition):
 
 
 def fit_ladder(rows):
-    """Bauer's law on the loading rows with each pressure measure: the fit's as_dict(),
-    or {"error": message} when the data cannot be fitted."""
+    """Bauer's law on the loading rows with each pressure measure: the fit's as_dict()
+    plus "levels" (the level numbers fitted) and "not_at_rest" (the loading levels left
+    out), or {"error": message} when the data cannot be fitted.
+
+    Only levels at rest are fitted: a sample still creeping at the end of
+    ``level_max_time`` has not reached the void ratio of its load.  When fewer than
+    MIN_AT_REST loading levels are at rest, all of them are fitted and "not_at_rest"
+    lists those that were not, so the fit is never silently made of moving samples."""
     loading = [r for r in rows if r["branch"] == "loading"]
+    moving = [r["level"] for r in loading if not r["at_rest"]]
+    if len(loading) - len(moving) >= MIN_AT_REST:
+        loading = [r for r in loading if r["at_rest"]]
     fits = {}
     for measure, key in MEASURES.items():
         try:
             fit = fit_bauer([r[key] for r in loading], [r["void_ratio"] for r in loading],
                             pressure=measure)
-            fits[measure] = fit.as_dict()
+            fits[measure] = {**fit.as_dict(), "levels": [r["level"] for r in loading],
+                             "not_at_rest": moving}
         except BauerFitError as err:
             fits[measure] = {"pressure": measure, "error": str(err)}
     return fits
