@@ -51,11 +51,6 @@ def test_ladder_doubles_up_to_p_max_and_back():
     assert down[3:] == [(2.0, "unloading"), (1.0, "unloading")]
 
 
-@pytest.mark.parametrize("change, message", [
-    (lambda c: c["protocol"].update(p_max=1e3), "p_max"),
-    (lambda c: c["protocol"].update(piston_material="brass"), "piston_material"),
-    (lambda c: c["run"].update(dim=2, gravity=[0, -9.81, 0]), "dim = 3"),
-])
 def _bauer_rows(moving):
     """Nine loading levels on Bauer's law (e0 = 0.8, h_s = 500 MPa, eta = 0.6) and one
     unloading level; the levels in ``moving`` are not at rest and 1 % too loose."""
@@ -86,6 +81,11 @@ def test_bauer_fit_uses_every_level_when_too_few_are_at_rest():
     assert fit["rms"] > 1e-3
 
 
+@pytest.mark.parametrize("change, message", [
+    (lambda c: c["protocol"].update(p_max=1e3), "p_max"),
+    (lambda c: c["protocol"].update(piston_material="brass"), "piston_material"),
+    (lambda c: c["run"].update(dim=2, gravity=[0, -9.81, 0]), "dim = 3"),
+])
 def test_bad_oedometer_configs_are_refused(change, message):
     data = copy.deepcopy(SMALL)
     change(data)
