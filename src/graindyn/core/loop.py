@@ -213,8 +213,9 @@ def run_chunk(model, params, grains, pairs, walls, periodic, clock, counters,
             counters[REBUILDS] += 1
         if counters[PRIMED] == 0:
             evaluate_forces(model, params, grains, pairs, walls, periodic, gravity, 0.0)
-            clock[MOVE] = _after(integrator, 0, 0.0, counters, gravity, grains, pairs, walls,
-                                 periodic, integrator_history, block_scratch)
+            # stage as a plain int64: a literal 0 would compile the pass a second time
+            clock[MOVE] = _after(integrator, np.int64(0), 0.0, counters, gravity, grains,
+                                 pairs, walls, periodic, integrator_history, block_scratch)
             counters[PRIMED] = 1
             # grains that start too deep in each other or in a wall: stop before moving
             if max_overlap.size > 0 and max_overlap.max() > clock[OVERLAP_LIMIT]:
