@@ -50,5 +50,6 @@ numba.config.CACHE_DIR = str(CACHE_DIR)
 scalar = numba.njit(cache=True, error_model="numpy", inline="always")
 inlined = numba.njit(cache=True, error_model="numpy", forceinline=True)
 kernel = numba.njit(cache=True, error_model="numpy")
+block = numba.njit(cache=True, error_model="numpy", _nrt=False)
 parallel = numba.njit(cache=True, error_model="numpy", parallel=True)
 prange = numba.prange

@@ -12,10 +12,15 @@ velocity of i at that point is v_i - v_j - (R'_i w_i + R'_j w_j) x n.
 """
 import math
 
-from .._jit import inlined, parallel, prange, scalar
+import numpy as np
+
+from .._jit import block, inlined, parallel, prange, scalar
 from ..physics.contact import contact_force, contact_release
 from .neighbors import min_image
 from .walls import wall_distance
+
+# most blocks of grains a pass hands to threads (Simulation.block_scratch has this size)
+MAX_BLOCKS = 64
 
 
 @inlined
@@ -42,10 +47,119 @@ def contact_response(model, params, a, b, overlap, lever_i, lever_j, r_eff, m_ef
             -mx - lever_j * cx, -my - lever_j * cy, -mz - lever_j * cz, dn, dt_)
 
 
+@scalar
+def pair_row(i, model, params, positions, velocities, angular_velocities, radii, masses,
+             materials, fixed, periodic_flag, periodic_length, start, partners, history,
+             pair_force, own, pair_torque_j, max_overlap, dt):
+    """The pairs listed by grain i (the loop body of ``pair_forces``, shared with the
+    GPU kernels): writes their forces, own[i] and max_overlap[i]; returns the normal
+    and tangential energy dissipated [J]."""
+    dissipated_n = 0.0
+    dissipated_t = 0.0
+    px, py, pz = periodic_flag[0], periodic_flag[1], periodic_flag[2]
+    lx, ly, lz = periodic_length[0], periodic_length[1], periodic_length[2]
+    worst = max_overlap[i]
+    # grain i's data, loaded once (the compiler cannot hoist them past the stores)
+    xi = positions[i, 0]
+    yi = positions[i, 1]
+    zi = positions[i, 2]
+    vxi = velocities[i, 0]
+    vyi = velocities[i, 1]
+    vzi = velocities[i, 2]
+    wxi = angular_velocities[i, 0]
+    wyi = angular_velocities[i, 1]
+    wzi = angular_velocities[i, 2]
+    r_i = radii[i]
+    m_i = masses[i]
+    a = materials[i]
+    fx = fy = fz = tx = ty = tz = 0.0
+    for k in range(start[i], start[i + 1]):
+        j = partners[k]
+        dx = min_image(xi - positions[j, 0], px, lx)
+        dy = min_image(yi - positions[j, 1], py, ly)
+        dz = min_image(zi - positions[j, 2], pz, lz)
+        r_j = radii[j]
+        rsum = r_i + r_j
+        d2 = dx * dx + dy * dy + dz * dz
+        if d2 >= rsum * rsum:
+            dirty = pair_force[k, 0] != 0.0 or pair_force[k, 1] != 0.0 \
+                or pair_force[k, 2] != 0.0
+            for h in range(history.shape[1]):
+                dirty = dirty or history[k, h] != 0.0
+            if dirty:
+                dissipated_t += contact_release(model, params, a, materials[j],
+                                                r_i * r_j / rsum, history, k)
+                for h in range(history.shape[1]):
+                    history[k, h] = 0.0
+                for d in range(3):
+                    pair_force[k, d] = 0.0
+                    pair_torque_j[k, d] = 0.0
+            continue
+        dist = math.sqrt(d2)
+        inv = 1.0 / dist
+        overlap = rsum - dist
+        worst = max(worst, overlap / min(r_i, r_j))
+        if fixed[j]:
+            m_eff = m_i
+        elif fixed[i]:
+            m_eff = masses[j]
+        else:
+            m_eff = m_i * masses[j] / (m_i + masses[j])
+        inv_sum = 1.0 / rsum
+        share = overlap * inv_sum
+        lever_i = r_i - share * r_j
+        lever_j = r_j - share * r_i
+        out = contact_response(
+            model, params, a, materials[j], overlap, lever_i, lever_j, r_i * r_j * inv_sum,
+            m_eff, dx * inv, dy * inv, dz * inv, vxi - velocities[j, 0],
+            vyi - velocities[j, 1], vzi - velocities[j, 2],
+            lever_i * wxi + lever_j * angular_velocities[j, 0],
+            lever_i * wyi + lever_j * angular_velocities[j, 1],
+            lever_i * wzi + lever_j * angular_velocities[j, 2],
+            wxi - angular_velocities[j, 0], wyi - angular_velocities[j, 1],
+            wzi - angular_velocities[j, 2], history, k, dt)
+        for d in range(3):
+            pair_force[k, d] = out[d]
+            pair_torque_j[k, d] = out[6 + d]
+        fx += out[0]
+        fy += out[1]
+        fz += out[2]
+        tx += out[3]
+        ty += out[4]
+        tz += out[5]
+        dissipated_n += out[9]
+        dissipated_t += out[10]
+    own[i, 0] = fx
+    own[i, 1] = fy
+    own[i, 2] = fz
+    own[i, 3] = tx
+    own[i, 4] = ty
+    own[i, 5] = tz
+    max_overlap[i] = worst
+    return dissipated_n, dissipated_t
+
+
+@block
+def _pair_block(lo, hi, model, params, positions, velocities, angular_velocities, radii,
+                masses, materials, fixed, periodic_flag, periodic_length, start, partners,
+                history, pair_force, own, pair_torque_j, max_overlap, dt):
+    """pair_row for grains lo..hi-1, compiled once as a serial function (inlined into a
+    parallel loop it would be compiled several times over); returns the energies."""
+    dissipated_n = 0.0
+    dissipated_t = 0.0
+    for i in range(lo, hi):
+        dn, dt_ = pair_row(i, model, params, positions, velocities, angular_velocities, radii,
+                           masses, materials, fixed, periodic_flag, periodic_length, start,
+                           partners, history, pair_force, own, pair_torque_j, max_overlap, dt)
+        dissipated_n += dn
+        dissipated_t += dt_
+    return dissipated_n, dissipated_t
+
+
 @parallel
 def pair_forces(model, params, positions, velocities, angular_velocities, radii, masses,
                 materials, fixed, periodic_flag, periodic_length, start, partners, history,
-                pair_force, own, pair_torque_j, max_overlap, dt):
+                pair_force, own, pair_torque_j, max_overlap, dt, nblock):
     """Forces of every listed pair; zero (and history reset) for pairs not touching.
 
     pair_force[k] [N] is the force on the first grain i of pair k and pair_torque_j[k]
@@ -53,140 +167,118 @@ def pair_forces(model, params, positions, velocities, angular_velocities, radii,
     torques on i of the pairs it lists, in list order.
     max_overlap[i] keeps the largest overlap / min(R_i, R_j) of grain i's pairs since
     the loop last read and reset it.
-    Returns the energies dissipated in the step, normal and tangential [J].
+    Returns the energies dissipated in the step, normal and tangential [J], summed over
+    ``nblock`` fixed blocks of grains (block_count) in block order.
     """
     n = positions.shape[0]
+    sums = np.zeros((nblock, 2))
+    for b in prange(nblock):
+        sums[b, 0], sums[b, 1] = _pair_block(
+            b * n // nblock, (b + 1) * n // nblock, model, params, positions, velocities,
+            angular_velocities, radii, masses, materials, fixed, periodic_flag, periodic_length,
+            start, partners, history, pair_force, own, pair_torque_j, max_overlap, dt)
+    return _block_total(sums)
+
+
+@scalar
+def wall_row(i, model, params, positions, velocities, angular_velocities, radii, masses,
+             materials, wall_kind, wall_geometry, wall_offset, wall_velocity, wall_material,
+             wall_start, wall_ids, wall_history, wall_force, wall_torque, max_overlap, dt):
+    """The wall contacts of grain i (the loop body of ``wall_forces``, shared with the
+    GPU kernels); returns the normal and tangential energy dissipated [J]."""
     dissipated_n = 0.0
     dissipated_t = 0.0
-    px, py, pz = periodic_flag[0], periodic_flag[1], periodic_flag[2]
-    lx, ly, lz = periodic_length[0], periodic_length[1], periodic_length[2]
-    for i in prange(n):
-        worst = max_overlap[i]
-        # grain i's data, loaded once (the compiler cannot hoist them past the stores)
-        xi = positions[i, 0]
-        yi = positions[i, 1]
-        zi = positions[i, 2]
-        vxi = velocities[i, 0]
-        vyi = velocities[i, 1]
-        vzi = velocities[i, 2]
-        wxi = angular_velocities[i, 0]
-        wyi = angular_velocities[i, 1]
-        wzi = angular_velocities[i, 2]
+    worst = max_overlap[i]
+    for q in range(wall_start[i], wall_start[i + 1]):
+        w = wall_ids[q]
+        dist, nx, ny, nz = wall_distance(wall_kind, wall_geometry, wall_offset, w,
+                                         positions[i, 0], positions[i, 1], positions[i, 2])
         r_i = radii[i]
-        m_i = masses[i]
-        a = materials[i]
-        fx = fy = fz = tx = ty = tz = 0.0
-        for k in range(start[i], start[i + 1]):
-            j = partners[k]
-            dx = min_image(xi - positions[j, 0], px, lx)
-            dy = min_image(yi - positions[j, 1], py, ly)
-            dz = min_image(zi - positions[j, 2], pz, lz)
-            r_j = radii[j]
-            rsum = r_i + r_j
-            d2 = dx * dx + dy * dy + dz * dz
-            if d2 >= rsum * rsum:
-                dirty = pair_force[k, 0] != 0.0 or pair_force[k, 1] != 0.0 \
-                    or pair_force[k, 2] != 0.0
-                for h in range(history.shape[1]):
-                    dirty = dirty or history[k, h] != 0.0
-                if dirty:
-                    dissipated_t += contact_release(model, params, a, materials[j],
-                                                    r_i * r_j / rsum, history, k)
-                    for h in range(history.shape[1]):
-                        history[k, h] = 0.0
-                    for d in range(3):
-                        pair_force[k, d] = 0.0
-                        pair_torque_j[k, d] = 0.0
-                continue
-            dist = math.sqrt(d2)
-            inv = 1.0 / dist
-            overlap = rsum - dist
-            worst = max(worst, overlap / min(r_i, r_j))
-            if fixed[j]:
-                m_eff = m_i
-            elif fixed[i]:
-                m_eff = masses[j]
-            else:
-                m_eff = m_i * masses[j] / (m_i + masses[j])
-            inv_sum = 1.0 / rsum
-            share = overlap * inv_sum
-            lever_i = r_i - share * r_j
-            lever_j = r_j - share * r_i
-            out = contact_response(
-                model, params, a, materials[j], overlap, lever_i, lever_j, r_i * r_j * inv_sum,
-                m_eff, dx * inv, dy * inv, dz * inv, vxi - velocities[j, 0],
-                vyi - velocities[j, 1], vzi - velocities[j, 2],
-                lever_i * wxi + lever_j * angular_velocities[j, 0],
-                lever_i * wyi + lever_j * angular_velocities[j, 1],
-                lever_i * wzi + lever_j * angular_velocities[j, 2],
-                wxi - angular_velocities[j, 0], wyi - angular_velocities[j, 1],
-                wzi - angular_velocities[j, 2], history, k, dt)
+        overlap = r_i - dist
+        if overlap <= 0.0:
+            dissipated_t += contact_release(model, params, materials[i], wall_material[w],
+                                            r_i, wall_history, q)
+            for h in range(wall_history.shape[1]):
+                wall_history[q, h] = 0.0
             for d in range(3):
-                pair_force[k, d] = out[d]
-                pair_torque_j[k, d] = out[6 + d]
-            fx += out[0]
-            fy += out[1]
-            fz += out[2]
-            tx += out[3]
-            ty += out[4]
-            tz += out[5]
-            dissipated_n += out[9]
-            dissipated_t += out[10]
-        own[i, 0] = fx
-        own[i, 1] = fy
-        own[i, 2] = fz
-        own[i, 3] = tx
-        own[i, 4] = ty
-        own[i, 5] = tz
-        max_overlap[i] = worst
+                wall_force[q, d] = 0.0
+                wall_torque[q, d] = 0.0
+            continue
+        worst = max(worst, overlap / r_i)
+        lever = r_i - overlap
+        out = contact_response(
+            model, params, materials[i], wall_material[w], overlap, lever, 0.0, r_i,
+            masses[i], nx, ny, nz,
+            velocities[i, 0] - wall_velocity[w, 0], velocities[i, 1] - wall_velocity[w, 1],
+            velocities[i, 2] - wall_velocity[w, 2],
+            lever * angular_velocities[i, 0], lever * angular_velocities[i, 1],
+            lever * angular_velocities[i, 2], angular_velocities[i, 0],
+            angular_velocities[i, 1], angular_velocities[i, 2], wall_history, q, dt)
+        for d in range(3):
+            wall_force[q, d] = out[d]
+            wall_torque[q, d] = out[3 + d]
+        dissipated_n += out[9]
+        dissipated_t += out[10]
+    max_overlap[i] = worst
+    return dissipated_n, dissipated_t
+
+
+@block
+def _wall_block(lo, hi, model, params, positions, velocities, angular_velocities, radii,
+                masses, materials, wall_kind, wall_geometry, wall_offset, wall_velocity,
+                wall_material, wall_start, wall_ids, wall_history, wall_force, wall_torque,
+                max_overlap, dt):
+    """wall_row for grains lo..hi-1 (as _pair_block); returns the energies."""
+    dissipated_n = 0.0
+    dissipated_t = 0.0
+    for i in range(lo, hi):
+        dn, dt_ = wall_row(i, model, params, positions, velocities, angular_velocities, radii,
+                           masses, materials, wall_kind, wall_geometry, wall_offset,
+                           wall_velocity, wall_material, wall_start, wall_ids, wall_history,
+                           wall_force, wall_torque, max_overlap, dt)
+        dissipated_n += dn
+        dissipated_t += dt_
     return dissipated_n, dissipated_t
 
 
 @parallel
 def wall_forces(model, params, positions, velocities, angular_velocities, radii, masses,
                 materials, wall_kind, wall_geometry, wall_offset, wall_velocity, wall_material,
-                wall_start, wall_ids, wall_history, wall_force, wall_torque, max_overlap, dt):
+                wall_start, wall_ids, wall_history, wall_force, wall_torque, max_overlap, dt,
+                nblock):
     """Forces of the walls on grains, per grain-wall candidate (R_j = infinity).
 
-    Returns the energies dissipated in the step, normal and tangential [J].
+    Returns the energies dissipated in the step, normal and tangential [J] (summed as in
+    pair_forces).
     """
     n = positions.shape[0]
-    dissipated_n = 0.0
-    dissipated_t = 0.0
-    for i in prange(n):
-        worst = max_overlap[i]
-        for q in range(wall_start[i], wall_start[i + 1]):
-            w = wall_ids[q]
-            dist, nx, ny, nz = wall_distance(wall_kind, wall_geometry, wall_offset, w,
-                                             positions[i, 0], positions[i, 1], positions[i, 2])
-            r_i = radii[i]
-            overlap = r_i - dist
-            if overlap <= 0.0:
-                dissipated_t += contact_release(model, params, materials[i], wall_material[w],
-                                                r_i, wall_history, q)
-                for h in range(wall_history.shape[1]):
-                    wall_history[q, h] = 0.0
-                for d in range(3):
-                    wall_force[q, d] = 0.0
-                    wall_torque[q, d] = 0.0
-                continue
-            worst = max(worst, overlap / r_i)
-            lever = r_i - overlap
-            out = contact_response(
-                model, params, materials[i], wall_material[w], overlap, lever, 0.0, r_i,
-                masses[i], nx, ny, nz,
-                velocities[i, 0] - wall_velocity[w, 0], velocities[i, 1] - wall_velocity[w, 1],
-                velocities[i, 2] - wall_velocity[w, 2],
-                lever * angular_velocities[i, 0], lever * angular_velocities[i, 1],
-                lever * angular_velocities[i, 2], angular_velocities[i, 0],
-                angular_velocities[i, 1], angular_velocities[i, 2], wall_history, q, dt)
-            for d in range(3):
-                wall_force[q, d] = out[d]
-                wall_torque[q, d] = out[3 + d]
-            dissipated_n += out[9]
-            dissipated_t += out[10]
-        max_overlap[i] = worst
-    return dissipated_n, dissipated_t
+    sums = np.zeros((nblock, 2))
+    for b in prange(nblock):
+        sums[b, 0], sums[b, 1] = _wall_block(
+            b * n // nblock, (b + 1) * n // nblock, model, params, positions, velocities,
+            angular_velocities, radii, masses, materials, wall_kind, wall_geometry,
+            wall_offset, wall_velocity, wall_material, wall_start, wall_ids, wall_history,
+            wall_force, wall_torque, max_overlap, dt)
+    return _block_total(sums)
+
+
+def block_count(n, threads):
+    """Number of fixed blocks of grains the passes hand to threads: one per thread at
+    least, about 2048 grains each, at most MAX_BLOCKS.  Each block is one call of a
+    compiled function, so small systems get few.  The blocks depend only on n and the
+    thread count, so sums over them are the same from run to run."""
+    return max(1, min(MAX_BLOCKS, max(threads, n // 2048)))
+
+
+@scalar
+def _block_total(sums):
+    """Column sums of the per-block energies, in block order."""
+    total_n = 0.0
+    total_t = 0.0
+    for b in range(sums.shape[0]):
+        total_n += sums[b, 0]
+        total_t += sums[b, 1]
+    return total_n, total_t
 
 
 @scalar

@@ -47,9 +47,10 @@ def new_clock(dt, skin, gravity):
 
 
 @kernel
-def evaluate_forces(model, params, grains, pairs, walls, periodic, gravity, dt):
+def evaluate_forces(model, params, grains, pairs, walls, periodic, gravity, dt, nblock):
     """All contact forces and the total force on each wall; returns the (normal,
-    tangential) energy dissipated [J] and the power of the walls on the grains [W]."""
+    tangential) energy dissipated [J] and the power of the walls on the grains [W].
+    nblock: blocks of grains handed to threads (contacts.block_count)."""
     (positions, velocities, angular_velocities, orientations, forces, torques, accelerations,
      angular_accelerations, radii, masses, inertias, materials, fixed, reference_positions,
      max_overlap) = grains
@@ -61,11 +62,11 @@ def evaluate_forces(model, params, grains, pairs, walls, periodic, gravity, dt):
     flag, lo, length = periodic
     dn, dt_ = pair_forces(model, params, positions, velocities, angular_velocities, radii,
                           masses, materials, fixed, flag, length, start, partners, history,
-                          pair_force, own, pair_torque_j, max_overlap, dt)
+                          pair_force, own, pair_torque_j, max_overlap, dt, nblock)
     wn, wt = wall_forces(model, params, positions, velocities, angular_velocities, radii,
                          masses, materials, kind, geometry, offset, velocity, material,
                          wall_start, wall_ids, wall_history, contact_force, contact_torque,
-                         max_overlap, dt)
+                         max_overlap, dt, nblock)
     force[:] = 0.0
     power = 0.0
     for i in range(masses.size):
@@ -212,7 +213,8 @@ def run_chunk(model, params, grains, pairs, walls, periodic, clock, counters,
             counters[FORCE_REBUILD] = 0
             counters[REBUILDS] += 1
         if counters[PRIMED] == 0:
-            evaluate_forces(model, params, grains, pairs, walls, periodic, gravity, 0.0)
+            evaluate_forces(model, params, grains, pairs, walls, periodic, gravity, 0.0,
+                            block_scratch.size)
             # stage as a plain int64: a literal 0 would compile the pass a second time
             clock[MOVE] = _after(integrator, np.int64(0), 0.0, counters, gravity, grains,
                                  pairs, walls, periodic, integrator_history, block_scratch)
@@ -232,7 +234,7 @@ def run_chunk(model, params, grains, pairs, walls, periodic, clock, counters,
             # and wall work advance by that share, not by the whole step
             share = dt / STAGES[integrator]
             dn, dtan, power = evaluate_forces(model, params, grains, pairs, walls, periodic,
-                                              gravity, share)
+                                              gravity, share, block_scratch.size)
             clock[DISS_N] += dn
             clock[DISS_T] += dtan
             clock[WALL_WORK] += power * share

@@ -7,9 +7,11 @@ chunks with Python triggers in between.
 """
 import math
 
+import numba
 import numpy as np
 
 from . import loop
+from .contacts import block_count
 from .integrators import SCHEMES, SLOTS, history_names, integrator_id
 from .species import ContactModel, Material
 from .timestep import time_step_report
@@ -112,7 +114,7 @@ class Simulation:
         n = state.n
         self.reference_positions = state.positions.copy()
         self.max_overlap = np.zeros(n)
-        self.block_scratch = np.zeros(64)
+        self.block_scratch = np.zeros(block_count(n, numba.get_num_threads()))
         self.history_size = max(3, self.model.history_size)
         # start small: the first build grows the lists to 1.3 x what it needs
         self._allocate_pairs(2 * n + 64)
@@ -238,6 +240,9 @@ class Simulation:
 
     def _chunk(self, nsteps):
         """Run up to nsteps compiled steps, growing storage as needed."""
+        blocks = block_count(self.state.n, numba.get_num_threads())
+        if self.block_scratch.size != blocks:      # the thread count changed
+            self.block_scratch = np.zeros(blocks)
         while True:
             status, done = loop.run_chunk(self.model_ids, self.params, self._grains(), self.pairs,
                                           self._walls(), self._periodic(), self.clock,

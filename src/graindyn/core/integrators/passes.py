@@ -13,7 +13,7 @@ rotational ones (ids.SLOTS).  ``started``: 0 on the first step after the history
 """
 import math
 
-from ..._jit import parallel, prange, scalar
+from ..._jit import block, parallel, prange, scalar
 from ..contacts import gather_grain
 from ..neighbors import min_image
 from .beeman import beeman_correct, beeman_drift
@@ -61,25 +61,111 @@ def turn(integrator, orientations, i, px, py, pz, wx, wy, wz, h):
         orientations[i, c] = q[c]
 
 
+@scalar
+def drift_grain(i, integrator, stage, dt, started, positions, velocities, angular_velocities,
+                orientations, accelerations, angular_accelerations, fixed, history):
+    """Drift/predict grain i before the force evaluation of ``stage`` (the loop body of
+    ``before_force``, shared with the GPU kernels)."""
+    if fixed[i]:
+        return
+    rot = SLOTS[integrator]
+    for d in range(3):
+        positions[i, d] += drift(integrator, stage, dt, started, velocities, accelerations,
+                                 history, 0, i, d)
+    px = drift(integrator, stage, dt, started, angular_velocities, angular_accelerations,
+               history, rot, i, 0)
+    py = drift(integrator, stage, dt, started, angular_velocities, angular_accelerations,
+               history, rot, i, 1)
+    pz = drift(integrator, stage, dt, started, angular_velocities, angular_accelerations,
+               history, rot, i, 2)
+    turn(integrator, orientations, i, px, py, pz, angular_velocities[i, 0],
+         angular_velocities[i, 1], angular_velocities[i, 2], dt)
+
+
 @parallel
 def before_force(integrator, stage, dt, started, positions, velocities, angular_velocities,
                  orientations, accelerations, angular_accelerations, fixed, history):
     """Drift/predict every free grain before the force evaluation of ``stage``."""
-    rot = SLOTS[integrator]
     for i in prange(positions.shape[0]):
-        if fixed[i]:
-            continue
+        drift_grain(i, integrator, stage, dt, started, positions, velocities,
+                    angular_velocities, orientations, accelerations, angular_accelerations,
+                    fixed, history)
+
+
+@scalar
+def correct_grain(i, integrator, stage, dt, started, dim, gravity, own, reverse_start,
+                  reverse_pairs, pair_force, pair_torque_j, wall_start, wall_force,
+                  wall_torque, forces, torques, masses, inertias, positions,
+                  reference_positions, velocities, angular_velocities, orientations,
+                  accelerations, angular_accelerations, fixed, periodic_flag,
+                  periodic_length, history):
+    """Grain i after the force evaluation (the loop body of ``after_force``, shared with
+    the GPU kernels): gather, correct, turn.  Returns |r - r_ref|^2 [m^2], |v|^2
+    [m^2/s^2] and |a|^2 [m^2/s^4] for the half-skin bound."""
+    rot = SLOTS[integrator]
+    f = gather_grain(i, masses[i], gravity, own, reverse_start, reverse_pairs,
+                     pair_force, pair_torque_j, wall_start, wall_force, wall_torque)
+    for d in range(3):
+        forces[i, d] = f[d]
+        torques[i, d] = f[3 + d]
+    if not fixed[i]:
+        inverse_mass = 1.0 / masses[i]
+        inverse_inertia = 1.0 / inertias[i]
         for d in range(3):
-            positions[i, d] += drift(integrator, stage, dt, started, velocities, accelerations,
-                                     history, 0, i, d)
-        px = drift(integrator, stage, dt, started, angular_velocities, angular_accelerations,
-                   history, rot, i, 0)
-        py = drift(integrator, stage, dt, started, angular_velocities, angular_accelerations,
-                   history, rot, i, 1)
-        pz = drift(integrator, stage, dt, started, angular_velocities, angular_accelerations,
-                   history, rot, i, 2)
-        turn(integrator, orientations, i, px, py, pz, angular_velocities[i, 0],
-             angular_velocities[i, 1], angular_velocities[i, 2], dt)
+            a = f[d] * inverse_mass
+            if dim == 2 and d == 2:
+                a = 0.0
+            positions[i, d] += correct(integrator, stage, dt, started, a, velocities,
+                                       accelerations, history, 0, i, d)
+        alpha_x = 0.0 if dim == 2 else f[3] * inverse_inertia
+        alpha_y = 0.0 if dim == 2 else f[4] * inverse_inertia
+        px = correct(integrator, stage, dt, started, alpha_x, angular_velocities,
+                     angular_accelerations, history, rot, i, 0)
+        py = correct(integrator, stage, dt, started, alpha_y, angular_velocities,
+                     angular_accelerations, history, rot, i, 1)
+        pz = correct(integrator, stage, dt, started, f[5] * inverse_inertia,
+                     angular_velocities, angular_accelerations, history, rot, i, 2)
+        if px != 0.0 or py != 0.0 or pz != 0.0:
+            q = rotate_quaternion(orientations[i, 0], orientations[i, 1],
+                                  orientations[i, 2], orientations[i, 3], px, py, pz)
+            for c in range(4):
+                orientations[i, c] = q[c]
+    d2 = 0.0
+    v2 = 0.0
+    a2 = 0.0
+    for d in range(3):
+        dx = min_image(positions[i, d] - reference_positions[i, d], periodic_flag[d],
+                       periodic_length[d])
+        d2 += dx * dx
+        v2 += velocities[i, d] * velocities[i, d]
+        a2 += accelerations[i, d] * accelerations[i, d]
+    return d2, v2, a2
+
+
+@block
+def _correct_block(lo, hi, integrator, stage, dt, started, dim, gravity, own, reverse_start,
+                   reverse_pairs, pair_force, pair_torque_j, wall_start, wall_force,
+                   wall_torque, forces, torques, masses, inertias, positions,
+                   reference_positions, velocities, angular_velocities, orientations,
+                   accelerations, angular_accelerations, fixed, periodic_flag,
+                   periodic_length, history):
+    """correct_grain for grains lo..hi-1, compiled once as a serial function; returns
+    max |r - r_ref| + max |v| dt + max |a| dt^2/2 over them [m] (square roots once per
+    block, not per grain)."""
+    top_d2 = 0.0
+    top_v2 = 0.0
+    top_a2 = 0.0
+    for i in range(lo, hi):
+        d2, v2, a2 = correct_grain(
+            i, integrator, stage, dt, started, dim, gravity, own, reverse_start,
+            reverse_pairs, pair_force, pair_torque_j, wall_start, wall_force, wall_torque,
+            forces, torques, masses, inertias, positions, reference_positions, velocities,
+            angular_velocities, orientations, accelerations, angular_accelerations, fixed,
+            periodic_flag, periodic_length, history)
+        top_d2 = max(top_d2, d2)
+        top_v2 = max(top_v2, v2)
+        top_a2 = max(top_a2, a2)
+    return math.sqrt(top_d2) + math.sqrt(top_v2) * dt + 0.5 * math.sqrt(top_a2) * dt * dt
 
 
 @parallel
@@ -92,60 +178,19 @@ def after_force(integrator, stage, dt, started, dim, gravity, pairs, wall_start,
     (dt = 0 only stores the accelerations at start-up), and return a bound on how far
     any grain may be from where it was at the last neighbour build by the end of the
     next drift, max |r - r_ref| + max |v| dt + max |a| dt^2/2 [m] (maxima over grains),
-    for the half-skin rule (the higher-order
-    terms of Beeman and Gear are O(dt^3), far below the skin).  One pass over grains,
-    in fixed blocks, so the result does not depend on thread timing."""
+    for the half-skin rule (the higher-order terms of Beeman and Gear are O(dt^3), far
+    below the skin).  One pass over grains, in fixed blocks (one per entry of
+    block_scratch, contacts.block_count), so the result does not depend on thread
+    timing."""
     (start, partners, pair_history, scratch_start, scratch_partners, scratch_history,
      reverse_start, reverse_pairs, pair_force, own, pair_torque_j) = pairs
     n = masses.size
     nblock = block_scratch.size
-    rot = SLOTS[integrator]
     for b in prange(nblock):
-        # the block's largest |r - r_ref|^2, |v|^2 and |a|^2: the bound built from them
-        # is at least every grain's own (square roots once per block, not per grain)
-        top_d2 = 0.0
-        top_v2 = 0.0
-        top_a2 = 0.0
-        for i in range(b * n // nblock, (b + 1) * n // nblock):
-            f = gather_grain(i, masses[i], gravity, own, reverse_start, reverse_pairs,
-                             pair_force, pair_torque_j, wall_start, wall_force, wall_torque)
-            for d in range(3):
-                forces[i, d] = f[d]
-                torques[i, d] = f[3 + d]
-            if not fixed[i]:
-                inverse_mass = 1.0 / masses[i]
-                inverse_inertia = 1.0 / inertias[i]
-                for d in range(3):
-                    a = f[d] * inverse_mass
-                    if dim == 2 and d == 2:
-                        a = 0.0
-                    positions[i, d] += correct(integrator, stage, dt, started, a, velocities,
-                                               accelerations, history, 0, i, d)
-                alpha_x = 0.0 if dim == 2 else f[3] * inverse_inertia
-                alpha_y = 0.0 if dim == 2 else f[4] * inverse_inertia
-                px = correct(integrator, stage, dt, started, alpha_x, angular_velocities,
-                             angular_accelerations, history, rot, i, 0)
-                py = correct(integrator, stage, dt, started, alpha_y, angular_velocities,
-                             angular_accelerations, history, rot, i, 1)
-                pz = correct(integrator, stage, dt, started, f[5] * inverse_inertia,
-                             angular_velocities, angular_accelerations, history, rot, i, 2)
-                if px != 0.0 or py != 0.0 or pz != 0.0:
-                    q = rotate_quaternion(orientations[i, 0], orientations[i, 1],
-                                          orientations[i, 2], orientations[i, 3], px, py, pz)
-                    for c in range(4):
-                        orientations[i, c] = q[c]
-            d2 = 0.0
-            v2 = 0.0
-            a2 = 0.0
-            for d in range(3):
-                dx = min_image(positions[i, d] - reference_positions[i, d], periodic_flag[d],
-                               periodic_length[d])
-                d2 += dx * dx
-                v2 += velocities[i, d] * velocities[i, d]
-                a2 += accelerations[i, d] * accelerations[i, d]
-            top_d2 = max(top_d2, d2)
-            top_v2 = max(top_v2, v2)
-            top_a2 = max(top_a2, a2)
-        block_scratch[b] = math.sqrt(top_d2) + math.sqrt(top_v2) * dt \
-            + 0.5 * math.sqrt(top_a2) * dt * dt
+        block_scratch[b] = _correct_block(
+            b * n // nblock, (b + 1) * n // nblock, integrator, stage, dt, started, dim,
+            gravity, own, reverse_start, reverse_pairs, pair_force, pair_torque_j, wall_start,
+            wall_force, wall_torque, forces, torques, masses, inertias, positions,
+            reference_positions, velocities, angular_velocities, orientations, accelerations,
+            angular_accelerations, fixed, periodic_flag, periodic_length, history)
     return block_scratch.max()
