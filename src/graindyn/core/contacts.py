@@ -48,6 +48,20 @@ def contact_response(model, params, a, b, overlap, lever_i, lever_j, r_eff, m_ef
 
 
 @scalar
+def _release(model, params, a, b, r_eff, history, force, torque, k):
+    """A contact k that opened: returns the energy [J] left in its history springs (lost
+    with the history, physics.contact.contact_release) and zeroes its history, force and
+    torque rows."""
+    lost = contact_release(model, params, a, b, r_eff, history, k)
+    for h in range(history.shape[1]):
+        history[k, h] = 0.0
+    for d in range(3):
+        force[k, d] = 0.0
+        torque[k, d] = 0.0
+    return lost
+
+
+@scalar
 def pair_row(i, model, params, positions, velocities, angular_velocities, radii, masses,
              materials, fixed, periodic_flag, periodic_length, start, partners, history,
              pair_force, own, pair_torque_j, max_overlap, dt):
@@ -87,13 +101,8 @@ def pair_row(i, model, params, positions, velocities, angular_velocities, radii,
             for h in range(history.shape[1]):
                 dirty = dirty or history[k, h] != 0.0
             if dirty:
-                dissipated_t += contact_release(model, params, a, materials[j],
-                                                r_i * r_j / rsum, history, k)
-                for h in range(history.shape[1]):
-                    history[k, h] = 0.0
-                for d in range(3):
-                    pair_force[k, d] = 0.0
-                    pair_torque_j[k, d] = 0.0
+                dissipated_t += _release(model, params, a, materials[j], r_i * r_j / rsum,
+                                         history, pair_force, pair_torque_j, k)
             continue
         dist = math.sqrt(d2)
         inv = 1.0 / dist
@@ -196,13 +205,8 @@ def wall_row(i, model, params, positions, velocities, angular_velocities, radii,
         r_i = radii[i]
         overlap = r_i - dist
         if overlap <= 0.0:
-            dissipated_t += contact_release(model, params, materials[i], wall_material[w],
-                                            r_i, wall_history, q)
-            for h in range(wall_history.shape[1]):
-                wall_history[q, h] = 0.0
-            for d in range(3):
-                wall_force[q, d] = 0.0
-                wall_torque[q, d] = 0.0
+            dissipated_t += _release(model, params, materials[i], wall_material[w], r_i,
+                                     wall_history, wall_force, wall_torque, q)
             continue
         worst = max(worst, overlap / r_i)
         lever = r_i - overlap
