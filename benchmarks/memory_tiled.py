@@ -1,0 +1,43 @@
+"""Array memory per grain of a large bed made by tiling a settled one.
+
+    python benchmarks/memory_tiled.py STATE SIZE NX NY
+
+STATE: a settled bed (x y z r per line, SI) in the box [0, SIZE]^2 with an open top,
+as written by ../shared/bench (state_settle_10000.txt has SIZE = 0.024).  The bed is
+repeated NX x NY times in x and y inside one box, built with the LAMMPS-benchmark
+physics (Hertz, Mindlin, Tsuji), and advanced a few steps; prints N, the array bytes
+per grain (Simulation.memory_bytes), the peak RSS of the process, contacts and listed
+pairs per grain.
+"""
+import resource
+import sys
+
+import numpy as np
+
+
+def main(argv):
+    if len(argv) != 4:
+        sys.exit(__doc__)
+    state_file, size, nx, ny = argv[0], float(argv[1]), int(argv[2]), int(argv[3])
+    import graindyn as gd
+    from graindyn.analysis.packing import coordination_number
+
+    bed = np.loadtxt(state_file, ndmin=2)
+    positions = np.vstack([bed[:, :3] + [ix * size, iy * size, 0.0]
+                           for ix in range(nx) for iy in range(ny)])
+    state = gd.State.create(positions, np.tile(bed[:, 3], nx * ny), 2650.0)
+    grain = gd.Material("bed", density=2650.0, youngs_modulus=1e8, poisson_ratio=0.3,
+                        restitution=0.9, friction_sliding=0.5, tangential_damping=1.0)
+    walls = gd.box((0.0, 0.0, 0.0), (nx * size, ny * size, 10 * size))
+    sim = gd.Simulation(state, [grain], gd.ContactModel("hertz", "tsuji", "mindlin",
+                                                         limit_damping=False),
+                        walls=walls, dt=2e-6, skin=1e-4, check_interval=1000)
+    sim.run(steps=20)
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    print(f"N {state.n} array_bytes_per_grain {sim.memory_bytes() / state.n:.0f} "
+          f"peak_rss_MB {rss / 1e6:.0f} contacts_per_grain {coordination_number(sim):.3f} "
+          f"listed_pairs_per_grain {int(sim.pairs[0][-1]) / state.n:.3f}")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
