@@ -1,13 +1,14 @@
 """Array memory per grain of a large bed made by tiling a settled one.
 
-    python benchmarks/memory_tiled.py STATE SIZE NX NY
+    python benchmarks/memory_tiled.py STATE SIZE NX NY [OUT]
 
 STATE: a settled bed (x y z r per line, SI) in the box [0, SIZE]^2 with an open top,
 as written by ../shared/bench (state_settle_10000.txt has SIZE = 0.024).  The bed is
 repeated NX x NY times in x and y inside one box, built with the LAMMPS-benchmark
 physics (Hertz, Mindlin, Tsuji), and advanced a few steps; prints N, the array bytes
 per grain (Simulation.memory_bytes), the peak RSS of the process, contacts and listed
-pairs per grain.
+pairs per grain.  OUT, if given, receives the tiled bed in the same format (for
+benchmarks/lammps_bed.py).
 """
 import resource
 import sys
@@ -16,7 +17,7 @@ import numpy as np
 
 
 def main(argv):
-    if len(argv) != 4:
+    if len(argv) not in (4, 5):
         sys.exit(__doc__)
     state_file, size, nx, ny = argv[0], float(argv[1]), int(argv[2]), int(argv[3])
     import graindyn as gd
@@ -25,7 +26,10 @@ def main(argv):
     bed = np.loadtxt(state_file, ndmin=2)
     positions = np.vstack([bed[:, :3] + [ix * size, iy * size, 0.0]
                            for ix in range(nx) for iy in range(ny)])
-    state = gd.State.create(positions, np.tile(bed[:, 3], nx * ny), 2650.0)
+    radii = np.tile(bed[:, 3], nx * ny)
+    if len(argv) == 5:
+        np.savetxt(argv[4], np.column_stack((positions, radii)))
+    state = gd.State.create(positions, radii, 2650.0)
     grain = gd.Material("bed", density=2650.0, youngs_modulus=1e8, poisson_ratio=0.3,
                         restitution=0.9, friction_sliding=0.5, tangential_damping=1.0)
     walls = gd.box((0.0, 0.0, 0.0), (nx * size, ny * size, 10 * size))
