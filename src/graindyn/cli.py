@@ -30,7 +30,8 @@ def run(
     threads: Annotated[Optional[int], typer.Option(
         help="CPU threads (overrides run.threads; 0 = all cores).", min=0)] = None,
     backend: Annotated[Optional[str], typer.Option(
-        help="Compute backend, cpu or gpu (overrides run.backend).")] = None,
+        help="Compute backend, cpu or gpu (overrides run.backend; gpu is refused until "
+             "the GPU backend is wired in, see docs/gpu_notes.md).")] = None,
     resume: Annotated[Optional[pathlib.Path], typer.Option(
         help="Continue the run in this run directory from its last checkpoint.")] = None,
     progress: Annotated[bool, typer.Option(
