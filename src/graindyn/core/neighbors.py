@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from .._jit import kernel, parallel, prange, scalar
+from .._jit import inlined, kernel, parallel, prange, scalar
 from .walls import wall_distance
 
 
@@ -27,67 +27,94 @@ def min_image(dx, periodic, length):
     return dx
 
 
+@scalar
+def wrap_coordinate(x, lo, length):
+    """A coordinate brought back into [lo, lo + L) along a periodic axis."""
+    return lo + (x - lo) % length
+
+
 @kernel
 def wrap_positions(positions, periodic_flag, periodic_lo, periodic_length):
     """Bring positions back into [lo, lo + L) along periodic axes."""
     for d in range(3):
         if periodic_flag[d]:
-            lo = periodic_lo[d]
-            length = periodic_length[d]
             for i in range(positions.shape[0]):
-                positions[i, d] = lo + (positions[i, d] - lo) % length
+                positions[i, d] = wrap_coordinate(positions[i, d], periodic_lo[d],
+                                                  periodic_length[d])
 
 
 @kernel
-def _grid(positions, cutoff, periodic_flag, periodic_lo, periodic_length):
-    """Cell grid: origin (3), cell size (3) and cell counts (3) of at least ``cutoff``."""
-    n = positions.shape[0]
-    lo = np.zeros(3)
-    size = np.zeros(3)
-    lengths = np.zeros(3)
-    counts = np.ones(3, np.int64)
+def grid_from_extent(low, high, n, cutoff, periodic_flag, periodic_lo, periodic_length,
+                     origin, size, counts):
+    """Cell grid of at least ``cutoff`` [m] over the box [low, high] of N grains (periodic
+    axes span their period): writes origin (3), cell size (3) and cell counts (3).
+    Allocates nothing, so the GPU builds its grid with the same function."""
     for d in range(3):
         if periodic_flag[d]:
-            lo[d] = periodic_lo[d]
-            lengths[d] = periodic_length[d]
+            origin[d] = periodic_lo[d]
+            size[d] = periodic_length[d]
         else:
-            a = positions[0, d]
-            b = positions[0, d]
-            for i in range(n):
-                a = min(a, positions[i, d])
-                b = max(b, positions[i, d])
-            lo[d] = a
-            lengths[d] = b - a
+            origin[d] = low[d]
+            size[d] = high[d] - low[d]
         # grains flung far apart by a blow-up: cap before converting to int (the
         # coarsening below brings the grid back to O(N) cells)
-        counts[d] = max(1, int(min(lengths[d] / cutoff, 1e6)))
+        counts[d] = max(1, int(min(size[d] / cutoff, 1e6)))
     # a dilute cloud spread far apart: coarsen so that the cells stay O(N)
     while counts[0] * counts[1] * counts[2] > 4 * n + 64:
         for d in range(3):
             counts[d] = max(1, counts[d] // 2)
     for d in range(3):
-        size[d] = lengths[d] / counts[d] if periodic_flag[d] else max(lengths[d] / counts[d],
-                                                                        cutoff)
-    return lo, size, counts
+        size[d] = size[d] / counts[d] if periodic_flag[d] else max(size[d] / counts[d],
+                                                                    cutoff)
+
+
+def max_cells(n):
+    """Most cells grid_from_extent can make for N grains."""
+    return 4 * n + 64
 
 
 @kernel
-def _cell_of(x, d, lo, size, counts):
-    c = int((x - lo[d]) / size[d])
-    return min(max(c, 0), counts[d] - 1)
+def _grid(positions, cutoff, periodic_flag, periodic_lo, periodic_length):
+    """Cell grid of the current positions: (origin, size, counts)."""
+    low = np.empty(3)
+    high = np.empty(3)
+    for d in range(3):
+        low[d] = high[d] = positions[0, d]
+        for i in range(positions.shape[0]):
+            low[d] = min(low[d], positions[i, d])
+            high[d] = max(high[d], positions[i, d])
+    origin = np.empty(3)
+    size = np.empty(3)
+    counts = np.empty(3, np.int64)
+    grid_from_extent(low, high, positions.shape[0], cutoff, periodic_flag, periodic_lo,
+                     periodic_length, origin, size, counts)
+    return origin, size, counts
+
+
+@scalar
+def _cell_of(x, lo, size, count):
+    c = int((x - lo) / size)
+    return min(max(c, 0), count - 1)
+
+
+@scalar
+def cell_id(x, y, z, origin, size, counts):
+    """Index of the cell holding the point (x, y, z) (points outside go to the edge)."""
+    return (_cell_of(x, origin[0], size[0], counts[0]) * counts[1]
+            + _cell_of(y, origin[1], size[1], counts[1])) * counts[2] \
+        + _cell_of(z, origin[2], size[2], counts[2])
 
 
 @kernel
-def _cell_sort(positions, lo, size, counts):
-    """Counting sort of grains by cell: (cell_start (C+1), cell_items (N), cell (N))."""
+def _cell_sort(positions, origin, size, counts):
+    """Counting sort of grains by cell: (cell_start (C+1), cell_items (N), cell (N));
+    within a cell the grains are in increasing index."""
     n = positions.shape[0]
     ncell = counts[0] * counts[1] * counts[2]
     cell = np.empty(n, np.int64)
     start = np.zeros(ncell + 1, np.int64)
     for i in range(n):
-        c = (_cell_of(positions[i, 0], 0, lo, size, counts) * counts[1]
-             + _cell_of(positions[i, 1], 1, lo, size, counts)) * counts[2] \
-            + _cell_of(positions[i, 2], 2, lo, size, counts)
+        c = cell_id(positions[i, 0], positions[i, 1], positions[i, 2], origin, size, counts)
         cell[i] = c
         start[c + 1] += 1
     for c in range(ncell):
@@ -100,40 +127,40 @@ def _cell_sort(positions, lo, size, counts):
     return start, items, cell
 
 
-@kernel
-def _offsets(c, count, periodic):
-    """Neighbouring cell indices along one axis, without duplicates."""
-    out = np.empty(3, np.int64)
-    k = 0
+@scalar
+def neighbour_cell(c, o, count, periodic):
+    """The o-th (0, 1, 2) neighbouring cell of cell c along an axis of ``count`` cells,
+    or -1 when there is none (outside a wall, or already visited on a short period)."""
     if periodic:
         if count >= 3:
-            for o in (-1, 0, 1):
-                out[k] = (c + o) % count
-                k += 1
-        else:
-            for o in range(count):
-                out[k] = o
-                k += 1
-    else:
-        for o in (-1, 0, 1):
-            if 0 <= c + o < count:
-                out[k] = c + o
-                k += 1
-    return out[:k]
+            return (c + o - 1) % count
+        return o if o < count else -1
+    a = c + o - 1
+    return a if 0 <= a < count else -1
 
 
-@kernel
-def _scan_grain(i, positions, radii, skin, cell, counts, cell_start, cell_items,
-                periodic_flag, periodic_length, out, base):
-    """Count (out is None-like: size 0) or write the partners j > i of grain i."""
+@inlined
+def scan_grain(i, positions, radii, skin, cell, counts, cell_start, cell_items,
+               periodic_flag, periodic_length, write, out, base):
+    """Count the partners j > i of grain i, writing them at out[base:] when ``write``;
+    in the order of cells, then of grain index (identical on CPU and GPU)."""
     c = cell[i]
     cz = c % counts[2]
     cy = (c // counts[2]) % counts[1]
     cx = c // (counts[1] * counts[2])
     k = 0
-    for ax in _offsets(cx, counts[0], periodic_flag[0]):
-        for ay in _offsets(cy, counts[1], periodic_flag[1]):
-            for az in _offsets(cz, counts[2], periodic_flag[2]):
+    for ox in range(3):
+        ax = neighbour_cell(cx, ox, counts[0], periodic_flag[0])
+        if ax < 0:
+            continue
+        for oy in range(3):
+            ay = neighbour_cell(cy, oy, counts[1], periodic_flag[1])
+            if ay < 0:
+                continue
+            for oz in range(3):
+                az = neighbour_cell(cz, oz, counts[2], periodic_flag[2])
+                if az < 0:
+                    continue
                 cc = (ax * counts[1] + ay) * counts[2] + az
                 for s in range(cell_start[cc], cell_start[cc + 1]):
                     j = cell_items[s]
@@ -146,7 +173,7 @@ def _scan_grain(i, positions, radii, skin, cell, counts, cell_start, cell_items,
                         r2 += dx * dx
                     cut = radii[i] + radii[j] + skin
                     if r2 < cut * cut:
-                        if out.size > 0:
+                        if write:
                             out[base + k] = j
                         k += 1
     return k
@@ -156,10 +183,9 @@ def _scan_grain(i, positions, radii, skin, cell, counts, cell_start, cell_items,
 def _count_pairs(positions, radii, skin, cell, counts, cell_start, cell_items,
                  periodic_flag, periodic_length, start):
     n = positions.shape[0]
-    empty = np.empty(0, np.uint32)
     for i in prange(n):
-        start[i + 1] = _scan_grain(i, positions, radii, skin, cell, counts, cell_start,
-                                   cell_items, periodic_flag, periodic_length, empty, 0)
+        start[i + 1] = scan_grain(i, positions, radii, skin, cell, counts, cell_start,
+                                  cell_items, periodic_flag, periodic_length, False, start, 0)
     start[0] = 0
     for i in range(n):
         start[i + 1] += start[i]
@@ -170,23 +196,28 @@ def _count_pairs(positions, radii, skin, cell, counts, cell_start, cell_items,
 def _fill_pairs(positions, radii, skin, cell, counts, cell_start, cell_items,
                 periodic_flag, periodic_length, start, partners):
     for i in prange(positions.shape[0]):
-        _scan_grain(i, positions, radii, skin, cell, counts, cell_start, cell_items,
-                    periodic_flag, periodic_length, partners, start[i])
+        scan_grain(i, positions, radii, skin, cell, counts, cell_start, cell_items,
+                   periodic_flag, periodic_length, True, partners, start[i])
+
+
+@inlined
+def carry_row(i, start, partners, history, new_start, new_partners, new_history):
+    """Copy grain i's surviving pairs' history from the old list; new pairs start at 0."""
+    for k in range(new_start[i], new_start[i + 1]):
+        j = new_partners[k]
+        found = -1
+        for m in range(start[i], start[i + 1]):
+            if partners[m] == j:
+                found = m
+                break
+        for h in range(new_history.shape[1]):
+            new_history[k, h] = history[found, h] if found >= 0 else 0.0
 
 
 @parallel
 def _carry_history(start, partners, history, new_start, new_partners, new_history):
-    """Copy each surviving pair's history from the old list; new pairs start at zero."""
     for i in prange(new_start.size - 1):
-        for k in range(new_start[i], new_start[i + 1]):
-            j = new_partners[k]
-            found = -1
-            for m in range(start[i], start[i + 1]):
-                if partners[m] == j:
-                    found = m
-                    break
-            for h in range(new_history.shape[1]):
-                new_history[k, h] = history[found, h] if found >= 0 else 0.0
+        carry_row(i, start, partners, history, new_start, new_partners, new_history)
 
 
 @kernel
@@ -205,20 +236,29 @@ def _reverse(start, partners, n, reverse_start, reverse_pairs):
         fill[j] += 1
 
 
+@inlined
+def wall_row(i, positions, radii, skin, kind, geometry, offset, write, wall_ids, base):
+    """Count the walls within R_i + skin of grain i, writing them at wall_ids[base:]
+    when ``write``."""
+    k = 0
+    for w in range(kind.size):
+        dist, nx, ny, nz = wall_distance(kind, geometry, offset, w, positions[i, 0],
+                                         positions[i, 1], positions[i, 2])
+        if dist < radii[i] + skin:
+            if write:
+                wall_ids[base + k] = w
+            k += 1
+    return k
+
+
 @parallel
 def _wall_candidates(positions, radii, skin, kind, geometry, offset, wall_start, wall_ids,
                      write):
     """Count (write=False) or list the walls within R_i + skin of each grain."""
     n = positions.shape[0]
     for i in prange(n):
-        k = 0
-        for w in range(kind.size):
-            dist, nx, ny, nz = wall_distance(kind, geometry, offset, w, positions[i, 0],
-                                             positions[i, 1], positions[i, 2])
-            if dist < radii[i] + skin:
-                if write:
-                    wall_ids[wall_start[i] + k] = w
-                k += 1
+        k = wall_row(i, positions, radii, skin, kind, geometry, offset, write, wall_ids,
+                     wall_start[i])
         if not write:
             wall_start[i + 1] = k
     if not write:
@@ -243,8 +283,9 @@ def rebuild(positions, radii, skin, periodic_flag, periodic_lo, periodic_length,
     n = positions.shape[0]
     wrap_positions(positions, periodic_flag, periodic_lo, periodic_length)
     cutoff = 2.0 * radii.max() + skin
-    lo, size, counts = _grid(positions, cutoff, periodic_flag, periodic_lo, periodic_length)
-    cell_start, cell_items, cell = _cell_sort(positions, lo, size, counts)
+    origin, size, counts = _grid(positions, cutoff, periodic_flag, periodic_lo,
+                                 periodic_length)
+    cell_start, cell_items, cell = _cell_sort(positions, origin, size, counts)
     needed = _count_pairs(positions, radii, skin, cell, counts, cell_start, cell_items,
                           periodic_flag, periodic_length, scratch_start)
     wall_needed = _wall_candidates(positions, radii, skin, wall_kind, wall_geometry,

@@ -6,23 +6,24 @@ correct_grain, walls.walls_advance) through device.device_function.
 What this part does and does not do yet:
 * all grain, contact and wall arrays live on the device between steps; forces,
   contact histories, walls and the integrator advance there;
-* the neighbour lists are still built on the host (core/neighbors.rebuild) when the
-  half-skin rule asks for it, and the rule reads one number back per step: a
-  device-side cell sort is the next part;
+* the neighbour lists are built on the device (gpu/neighbours.py) when the half-skin
+  rule, evaluated on the device, asks for it; the host reads that one flag back per
+  step, and the list sizes at each rebuild;
 * the energy sums and wall totals run on one device thread in grain order (exact, but
   serial); the NaN/overlap/stop-condition checks of run_chunk are not done here.
 """
 import math
 
+import numpy as np
 from numba import cuda
 
 from ..core import loop
 from ..core.contacts import pair_row, wall_row
 from ..core.integrators import STAGES
 from ..core.integrators.passes import correct_grain, drift_grain
-from ..core.neighbors import rebuild
 from ..core.walls import walls_advance
 from .device import device_function
+from .neighbours import DeviceNeighbours
 
 THREADS = 128          # threads per block of the per-grain kernels
 _KERNELS = {}
@@ -126,13 +127,31 @@ def kernels():
         clock[loop.MOVE] = math.sqrt(d2) + math.sqrt(v2) * dt + 0.5 * math.sqrt(a2) * dt * dt
 
     @cuda.jit
+    def decide_kernel(clock, offset, reference_offset, velocity, control):
+        """control[0] = 1 when the lists must be rebuilt before this step: the half-skin
+        rule of core/loop.run_chunk (one thread)."""
+        if cuda.grid(1) != 0:
+            return
+        dt = clock[loop.DT]
+        wall_move = 0.0
+        for w in range(offset.shape[0]):
+            d2 = 0.0
+            v2 = 0.0
+            for d in range(3):
+                d2 += (offset[w, d] - reference_offset[w, d]) ** 2
+                v2 += velocity[w, d] ** 2
+            wall_move = max(wall_move, math.sqrt(d2) + 2.0 * math.sqrt(v2) * dt)
+        grain_move = clock[loop.MOVE]
+        control[0] = 1 if grain_move + max(grain_move, wall_move) > clock[loop.SKIN] else 0
+
+    @cuda.jit
     def tick_kernel(clock):
         if cuda.grid(1) == 0:
             clock[loop.TIME] += clock[loop.DT]
 
     _KERNELS.update(drift=drift_kernel, walls=walls_kernel, force=force_kernel,
                     totals=totals_kernel, correct=correct_kernel, bound=bound_kernel,
-                    tick=tick_kernel)
+                    decide=decide_kernel, tick=tick_kernel)
     return _KERNELS
 
 
@@ -163,6 +182,9 @@ class DeviceSimulation:
         self.model = cuda.to_device(self.sim.model_ids)
         self.params = cuda.to_device(self.sim.params)
         self.gravity = cuda.to_device(self.sim.clock[loop.GX:loop.GZ + 1].copy())
+        self.control = cuda.to_device(np.zeros(1, np.int64))
+        if getattr(self, "lists", None) is None or self.lists.n != n:
+            self.lists = DeviceNeighbours(n)
 
     def _download(self, groups=None):
         for k in groups or self.dev:
@@ -170,26 +192,31 @@ class DeviceSimulation:
                 dev.copy_to_host(host)
 
     def _rebuild(self):
-        """Host-side neighbour build (core/neighbors.rebuild), growing the lists as the
-        CPU loop does; the new lists go back to the device."""
+        """Device-side neighbour build (gpu/neighbours.py); the new lists, written in the
+        scratch arrays, are swapped in.  When a list outgrows its arrays, they are grown
+        on the host as the CPU loop does (the old lists kept) and the build runs again."""
         sim = self.sim
-        self._download()
-        (positions, *_, reference_positions, _max_overlap) = sim._grains()
+        cutoff = 2.0 * float(sim.state.radii.max()) + float(sim.clock[loop.SKIN])
         while True:
-            p, w = sim.pairs, sim.wall_contacts
-            flag, lo, length = sim._periodic()
-            needed, wall_needed = rebuild(
-                positions, sim.state.radii, sim.clock[loop.SKIN], flag, lo, length, *p[:8],
-                sim.walls.kind, sim.walls.geometry, sim.walls.offset, *w[:6],
-                reference_positions, sim.reference_offset)
-            if needed <= p[1].size and wall_needed <= w[1].size:
+            p, w = self.dev["pairs"], self.dev["walls"]
+            needed, wall_needed, finite = self.lists.build(
+                cutoff, float(sim.clock[loop.SKIN]), self.dev["grains"], p, w,
+                self.dev["periodic"])
+            if not finite:
+                raise FloatingPointError("a grain position is not finite: the run blew up "
+                                         f"before step {sim.step + 1}")
+            if needed <= p[1].size and wall_needed <= w[11].size:
                 break
+            self._download()
             if needed > p[1].size:
                 sim._allocate_pairs(int(1.3 * needed) + 64)
-            if wall_needed > w[1].size:
+            if wall_needed > w[11].size:
                 sim._allocate_walls(int(1.3 * wall_needed) + 16)
+            self._upload()
+        for a, b in ((0, 3), (1, 4), (2, 5)):
+            p[a], p[b] = p[b], p[a]
+            w[10 + a], w[13 + a] = w[13 + a], w[10 + a]
         sim.counters[loop.REBUILDS] += 1
-        self._upload()
 
     def _launch(self, name, n, *args):
         blocks = max(1, (n + THREADS - 1) // THREADS)
@@ -226,17 +253,9 @@ class DeviceSimulation:
         dt = float(sim.clock[loop.DT])
         integrator = int(counters[loop.INTEGRATOR])
         for _ in range(steps):
-            host_clock = clock.copy_to_host()
-            rebuild_now = counters[loop.FORCE_REBUILD] != 0
-            if not rebuild_now:
-                offset = w[5].copy_to_host()
-                velocity = w[6].copy_to_host()
-                wall_move = 0.0
-                for k in range(offset.shape[0]):
-                    wall_move = max(wall_move, math.dist(offset[k], sim.reference_offset[k])
-                                    + 2.0 * math.hypot(*velocity[k]) * dt)
-                grain_move = host_clock[loop.MOVE]
-                rebuild_now = grain_move + max(grain_move, wall_move) > host_clock[loop.SKIN]
+            if counters[loop.FORCE_REBUILD] == 0:
+                self.k["decide"][1, 1](clock, w[5], w[9], w[6], self.control)
+            rebuild_now = counters[loop.FORCE_REBUILD] != 0 or self.control.copy_to_host()[0]
             if rebuild_now:
                 self._rebuild()
                 counters[loop.FORCE_REBUILD] = 0
