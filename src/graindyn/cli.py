@@ -30,8 +30,8 @@ def run(
     threads: Annotated[Optional[int], typer.Option(
         help="CPU threads (overrides run.threads; 0 = all cores).", min=0)] = None,
     backend: Annotated[Optional[str], typer.Option(
-        help="Compute backend, cpu or gpu (overrides run.backend; gpu is refused until "
-             "the GPU backend is wired in, see docs/gpu_notes.md).")] = None,
+        help="Compute backend, cpu or gpu (overrides run.backend; gpu needs the gpu "
+             "extra and an NVIDIA GPU, see docs/gpu_notes.md).")] = None,
     resume: Annotated[Optional[pathlib.Path], typer.Option(
         help="Continue the run in this run directory from its last checkpoint.")] = None,
     progress: Annotated[bool, typer.Option(
@@ -52,18 +52,16 @@ def run(
     if (config is None) == (resume is None):
         _fail("give either CONFIG or --resume RUNDIR (not both)")
     try:
+        if backend not in (None, "cpu", "gpu"):
+            _fail(f"--backend = {backend!r}: choose cpu or gpu")
         if resume is not None:
-            if backend not in (None, "cpu"):
-                _fail("--backend: a resumed run keeps the backend it started with")
             results = resume_run(resume, show_progress=progress, echo=typer.echo,
-                                 threads=threads)
+                                 threads=threads, backend=backend)
         else:
             cfg = load(config)
             if threads is not None:
                 cfg.run.threads = threads
             if backend is not None:
-                if backend not in ("cpu", "gpu"):
-                    _fail(f"--backend = {backend!r}: choose cpu or gpu")
                 cfg.run.backend = backend
             results = execute(cfg, out or pathlib.Path("runs") / cfg.run.name,
                               show_progress=progress, echo=typer.echo)

@@ -51,8 +51,10 @@ def check(config: Config):
     except ValueError as err:
         raise ConfigError(f"contact: {err}") from None
     if config.run.backend == "gpu":
-        raise ConfigError("run.backend = 'gpu': the GPU backend is not part of this graindyn "
-                          "yet; use backend = 'cpu'")
+        from .gpu import unavailable
+        reason = unavailable()
+        if reason:
+            raise ConfigError(f"run.backend = 'gpu': {reason}; use backend = 'cpu'")
     return build.check_time_step(config)
 
 
@@ -219,10 +221,14 @@ def execute(config: Config, out, show_progress=True, echo=print):
         rundir.close()
 
 
-def resume(out, show_progress=True, echo=print, threads=None):
-    """Continue the run in ``out`` from its last good checkpoint; returns its results."""
+def resume(out, show_progress=True, echo=print, threads=None, backend=None):
+    """Continue the run in ``out`` from its last good checkpoint, on ``backend`` (cpu or
+    gpu; default: the run's own); returns its results."""
     rundir = RunDirectory(out)
     config = load(rundir.path / "config.toml")
+    if backend is not None and backend != config.run.backend:
+        config.run.backend = backend
+        check(config)
     threads = _threads(threads or rundir.meta().get("threads"))
     arrays, meta, step, t = checkpoint.latest(rundir.checkpoints, warn=echo)
     protocol = PROTOCOLS[config.protocol.kind](config)
@@ -241,7 +247,8 @@ def resume(out, show_progress=True, echo=print, threads=None):
     Series(rundir.path / "series.csv").truncate(step)
     vtk = VtkSeries(rundir.vtk, config.output.vtk_contacts, meta["vtk"])
     vtk.truncate(step)
-    rundir.log(f"resume from step {step}, t = {t:.6g} s, {threads} threads")
+    rundir.log(f"resume from step {step}, t = {t:.6g} s, {threads} threads, backend "
+               f"{config.run.backend}")
     echo(f"resuming {rundir.path} at step {step} (t = {t:.6g} s), {threads} threads")
     try:
         return _Driver(rundir, protocol, sim, rng, meta["protocol"], vtk.entries,

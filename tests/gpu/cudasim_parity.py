@@ -1,5 +1,6 @@
 """Run by tests/gpu/test_cudasim.py under NUMBA_ENABLE_CUDASIM=1: a small frictional
-bed with a piston moving down, advanced on the CPU and with the GPU kernels, then
+bed with a piston moving down, run with backend "cpu" and backend "gpu" (the first
+half, then a checkpoint resumed on the other backend for the second half), then
 compared; prints one JSON line."""
 import json
 import sys
@@ -7,11 +8,11 @@ import sys
 import numpy as np
 
 import graindyn as gd
+from graindyn.core.simulation import OverlapError
 from graindyn.core.walls import Motion
-from graindyn.gpu.engine import DeviceSimulation
 
 
-def make(model, integrator):
+def make(model, integrator, backend):
     rng = np.random.default_rng(4)
     g = (np.arange(2) + 0.5) * 2.1e-3
     pos = np.stack(np.meshgrid(g, g, g), -1).reshape(-1, 3) + rng.normal(scale=5e-5,
@@ -26,16 +27,26 @@ def make(model, integrator):
                       motion=Motion("velocity", velocity=(0.0, 0.0, -0.2)))
     walls = list(gd.box((0, 0, 0), (4.2e-3, 4.2e-3, 8e-3))) + [piston]
     return gd.Simulation(state, [grain], gd.ContactModel(*model), walls=walls, dt=2e-6,
-                         skin=2e-5, integrator=integrator)
+                         skin=2e-5, integrator=integrator, check_interval=7,
+                         backend=backend)
 
 
 def main(steps, model, integrator):
-    cpu, gpu = make(model, integrator), make(model, integrator)
-    cpu.run(steps=steps)
-    DeviceSimulation(gpu).run(steps)
+    cpu, gpu = make(model, integrator, "cpu"), make(model, integrator, "gpu")
+    half = steps // 2
+    cpu.run(steps=half)
+    gpu.run(steps=half)
+    # swap the backends through checkpoints for the second half
+    cpu_state, gpu_state = cpu.snapshot(), gpu.snapshot()
+    cpu, gpu = make(model, integrator, "gpu"), make(model, integrator, "cpu")
+    cpu.restore(cpu_state)
+    gpu.restore(gpu_state)
+    cpu.run(steps=steps - half)
+    gpu.run(steps=steps - half)
     out = {"contacts": int(len(cpu.contacts()[0])), "rebuilds": [cpu.rebuilds, gpu.rebuilds],
            "dissipated": [cpu.dissipated, gpu.dissipated], "wall_work": [cpu.wall_work,
-                                                                         gpu.wall_work]}
+                                                                         gpu.wall_work],
+           "steps": [cpu.step, gpu.step]}
     for name in ("positions", "velocities", "angular_velocities", "orientations"):
         a, b = getattr(cpu.state, name), getattr(gpu.state, name)
         out[name] = float(np.abs(a - b).max() / np.abs(a).max())
@@ -44,5 +55,28 @@ def main(steps, model, integrator):
     print(json.dumps(out))
 
 
+def checks():
+    """The stop condition and the overlap check of run_chunk on both backends."""
+    out = {}
+    model = ["hertz", "tsuji", "mindlin"]
+    for backend in ("cpu", "gpu"):
+        sim = make(model, "velocity_verlet", backend)
+        speed = float(np.linalg.norm(sim.state.velocities, axis=1).max())
+        first = sim.run(steps=40, until=gd.MaxSpeedBelow(2.0 * speed))
+        energy = sim.run(steps=40, until=gd.EnergyRatioBelow(1e30))
+        deep = make(model, "velocity_verlet", backend)
+        deep.state.positions[1] = deep.state.positions[0] + [1.2e-3, 0.0, 0.0]
+        try:
+            deep.run(steps=5)
+            overlap = "no error"
+        except OverlapError as err:
+            overlap = str(err)[:40]
+        out[backend] = [first, sim.step, energy, overlap]
+    print(json.dumps(out))
+
+
 if __name__ == "__main__":
-    main(int(sys.argv[1]), sys.argv[2].split(","), sys.argv[3])
+    if sys.argv[1] == "checks":
+        checks()
+    else:
+        main(int(sys.argv[1]), sys.argv[2].split(","), sys.argv[3])

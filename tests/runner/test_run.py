@@ -12,6 +12,7 @@ import pytest
 from typer.testing import CliRunner
 
 from graindyn.cli import app
+from graindyn.gpu import unavailable
 from graindyn.output import checkpoint
 
 from .conftest import cli as _cli
@@ -138,3 +139,19 @@ def test_info_lists_backends_and_cache():
     assert result.exit_code == 0
     for word in ("graindyn", "cpu:", "gpu:", "compile cache", "integrators"):
         assert word in result.output
+
+
+@pytest.mark.skipif(unavailable() is None, reason="this machine has a usable GPU")
+def test_resume_on_a_missing_gpu_is_a_clear_error(finished, tmp_path):
+    """A run may be resumed on the other backend (--backend); without a GPU, asking for
+    it is refused before anything runs, naming run.backend and the reason."""
+    run = tmp_path / "copy"
+    run.mkdir()
+    for name in ("config.toml", "meta.json"):
+        (run / name).write_text((finished / name).read_text())
+    (run / "checkpoints").mkdir()
+    (run / "checkpoints" / checkpoint.LATEST).write_bytes(
+        (finished / "checkpoints" / checkpoint.LATEST).read_bytes())
+    result = runner.invoke(app, ["run", "--resume", str(run), "--backend", "gpu"])
+    assert result.exit_code == 2 and "run.backend = 'gpu'" in result.output
+    assert "Traceback" not in result.output

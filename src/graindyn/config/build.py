@@ -54,7 +54,8 @@ def simulation_kwargs(config: Config):
     return {"materials": materials(config), "model": contact_model(config), "walls": planes,
             "periodic": periodic, "gravity": config.run.gravity, "dt": i.dt, "skin": i.skin,
             "integrator": i.name, "allow_large_dt": i.allow_large_dt,
-            "overlap_limit": i.overlap_limit, "check_interval": i.check_interval}
+            "overlap_limit": i.overlap_limit, "check_interval": i.check_interval,
+            "backend": config.run.backend}
 
 
 def check_time_step(config: Config):

@@ -47,6 +47,8 @@ class Simulation:
     overlap_limit : stop when some overlap exceeds this fraction of the smaller radius.
     check_interval : steps between NaN/overlap/stop-condition checks.
     integrator : one of integrators.NAMES (integrators/ids.py lists each with its equation).
+    backend : "cpu" (compiled loops, numba threads) or "gpu" (gpu/engine.py: the same
+      step on an NVIDIA GPU; the arrays travel to the device and back once per chunk).
 
     Everything a run needs to continue exactly:
       state arrays (State.arrays()), ``integrator_state`` (the integrator's per-grain
@@ -62,7 +64,16 @@ class Simulation:
 
     def __init__(self, state, materials, model=None, walls=(), periodic=(),
                  gravity=(0.0, 0.0, -9.81), dt=None, skin=None, integrator="velocity_verlet",
-                 allow_large_dt=False, overlap_limit=0.2, check_interval=100):
+                 allow_large_dt=False, overlap_limit=0.2, check_interval=100, backend="cpu"):
+        if backend not in ("cpu", "gpu"):
+            raise ValueError(f"backend must be 'cpu' or 'gpu', got {backend!r}")
+        if backend == "gpu":
+            from ..gpu import unavailable
+            reason = unavailable()
+            if reason:
+                raise ValueError(f"backend 'gpu': {reason}")
+        self.backend = backend
+        self._device = None
         self.state = state
         self.materials = list(materials) if materials else [Material()]
         self.model = model or ContactModel()
@@ -240,6 +251,11 @@ class Simulation:
 
     def _chunk(self, nsteps):
         """Run up to nsteps compiled steps, growing storage as needed."""
+        if self.backend == "gpu":
+            if self._device is None:
+                from ..gpu.engine import DeviceSimulation
+                self._device = DeviceSimulation(self)
+            return self._device.chunk(nsteps)
         blocks = block_count(self.state.n, numba.get_num_threads())
         if self.block_scratch.size != blocks:      # the thread count changed
             self.block_scratch = np.zeros(blocks)

@@ -1,16 +1,19 @@
-"""The soft-particle step on the GPU, first part (issue 6): the same step as
-core/loop.run_chunk, one CUDA thread per grain, built from the CPU's own per-grain
-functions (contacts.pair_row and wall_row, integrators.passes.drift_grain and
-correct_grain, walls.walls_advance) through device.device_function.
+"""The soft-particle step on the GPU (issue 6): the step of core/loop.run_chunk, one
+CUDA thread per grain, built from the CPU's own per-grain functions
+(contacts.pair_row and wall_row, integrators.passes.drift_grain and correct_grain,
+walls.walls_advance) through device.device_function.
 
-What this part does and does not do yet:
-* all grain, contact and wall arrays live on the device between steps; forces,
-  contact histories, walls and the integrator advance there;
+``Simulation(..., backend="gpu")`` runs its chunks here: the arrays go to the device at
+the start of a chunk and come back at its end, so everything between chunks (triggers,
+outputs, protocols, checkpoints) sees the same host arrays as on the CPU, and a
+checkpoint written on one backend resumes on the other.  Within a chunk:
+* forces, contact histories, walls and the integrator advance on the device;
 * the neighbour lists are built on the device (gpu/neighbours.py) when the half-skin
-  rule, evaluated on the device, asks for it; the host reads that one flag back per
-  step, and the list sizes at each rebuild;
-* the energy sums and wall totals run on one device thread in grain order (exact, but
-  serial); the NaN/overlap/stop-condition checks of run_chunk are not done here.
+  rule, evaluated on the device, asks for it; the host reads that flag back each step,
+  and the list sizes at each rebuild;
+* wall totals, energies, the displacement bound and the checks of run_chunk (non-finite
+  values, overlap, stop condition, every check_interval steps) are device reductions
+  (gpu/reductions.py).
 """
 import math
 
@@ -24,6 +27,8 @@ from ..core.integrators.passes import correct_grain, drift_grain
 from ..core.walls import walls_advance
 from .device import device_function
 from .neighbours import DeviceNeighbours
+from .reductions import BAD, KINETIC, OVERLAP, POTENTIAL, SPEED2, rows
+from .reductions import kernels as reduction_kernels
 
 THREADS = 128          # threads per block of the per-grain kernels
 _KERNELS = {}
@@ -74,30 +79,6 @@ def kernels():
             dissipation[i, 1] = dt_ + wt
 
     @cuda.jit
-    def totals_kernel(wall_start, wall_ids, contact_force, velocity, force, dissipation,
-                      clock, share):
-        """Force on each wall, wall power and energies, in grain order (one thread)."""
-        if cuda.grid(1) != 0:
-            return
-        for w in range(force.shape[0]):
-            for d in range(3):
-                force[w, d] = 0.0
-        power = 0.0
-        lost_n = 0.0
-        lost_t = 0.0
-        for i in range(dissipation.shape[0]):
-            lost_n += dissipation[i, 0]
-            lost_t += dissipation[i, 1]
-            for q in range(wall_start[i], wall_start[i + 1]):
-                w = wall_ids[q]
-                for d in range(3):
-                    force[w, d] -= contact_force[q, d]
-                    power += contact_force[q, d] * velocity[w, d]
-        clock[loop.DISS_N] += lost_n
-        clock[loop.DISS_T] += lost_t
-        clock[loop.WALL_WORK] += power * share
-
-    @cuda.jit
     def correct_kernel(integrator, stage, dt, started, dim, gravity, own, reverse_start,
                        reverse_pairs, pair_force, pair_torque_j, wall_start, wall_force,
                        wall_torque, forces, torques, masses, inertias, positions,
@@ -113,18 +94,6 @@ def kernels():
                 reference_positions, velocities, angular_velocities, orientations,
                 accelerations, angular_accelerations, fixed, periodic_flag, periodic_length,
                 history)
-
-    @cuda.jit
-    def bound_kernel(squares, dt, clock):
-        """clock[MOVE] = max |r - r_ref| + max |v| dt + max |a| dt^2/2 (one thread)."""
-        if cuda.grid(1) != 0:
-            return
-        d2 = v2 = a2 = 0.0
-        for i in range(squares.shape[0]):
-            d2 = max(d2, squares[i, 0])
-            v2 = max(v2, squares[i, 1])
-            a2 = max(a2, squares[i, 2])
-        clock[loop.MOVE] = math.sqrt(d2) + math.sqrt(v2) * dt + 0.5 * math.sqrt(a2) * dt * dt
 
     @cuda.jit
     def decide_kernel(clock, offset, reference_offset, velocity, control):
@@ -150,21 +119,20 @@ def kernels():
             clock[loop.TIME] += clock[loop.DT]
 
     _KERNELS.update(drift=drift_kernel, walls=walls_kernel, force=force_kernel,
-                    totals=totals_kernel, correct=correct_kernel, bound=bound_kernel,
-                    decide=decide_kernel, tick=tick_kernel)
+                    correct=correct_kernel, decide=decide_kernel, tick=tick_kernel)
     return _KERNELS
 
 
 class DeviceSimulation:
-    """A Simulation advanced on the GPU: ``DeviceSimulation(sim).run(steps)`` moves the
-    simulation's arrays to the device, runs the steps there and copies everything back
-    into ``sim`` (so its state, contacts, walls, energies and snapshot are those of the
-    GPU run).  Same integrators, laws and walls as the CPU; results agree with it to
-    floating-point reordering (fused multiply-adds on the device)."""
+    """The device side of a Simulation with backend "gpu": ``chunk(nsteps)`` is
+    core/loop.run_chunk on the GPU, with the same return values.  Same integrators, laws
+    and walls as the CPU; results agree with it to floating-point reordering (fused
+    multiply-adds on the device, sums of energies in another association)."""
 
     def __init__(self, sim):
         self.sim = sim
-        self.k = kernels()
+        self.k = dict(kernels(), **reduction_kernels())
+        self.lists = None
 
     def _bundles(self):
         """The host arrays, in the order the device copies keep them."""
@@ -176,35 +144,38 @@ class DeviceSimulation:
     def _upload(self):
         self.host = self._bundles()
         self.dev = {k: [cuda.to_device(a) for a in v] for k, v in self.host.items()}
-        n = self.sim.state.n
+        sim, n = self.sim, self.sim.state.n
         self.dissipation = cuda.device_array((n, 2))
         self.squares = cuda.device_array((n, 3))
-        self.model = cuda.to_device(self.sim.model_ids)
-        self.params = cuda.to_device(self.sim.params)
-        self.gravity = cuda.to_device(self.sim.clock[loop.GX:loop.GZ + 1].copy())
+        self.model = cuda.to_device(sim.model_ids)
+        self.params = cuda.to_device(sim.params)
+        self.gravity = cuda.to_device(sim.clock[loop.GX:loop.GZ + 1].copy())
         self.control = cuda.to_device(np.zeros(1, np.int64))
-        if getattr(self, "lists", None) is None or self.lists.n != n:
+        self.totals = cuda.device_array((rows(n), 3 * sim.walls.kind.size + 3))
+        self.partial = cuda.device_array((rows(n), 6))
+        self.checked = cuda.device_array(6)
+        if self.lists is None or self.lists.n != n:
             self.lists = DeviceNeighbours(n)
 
-    def _download(self, groups=None):
-        for k in groups or self.dev:
+    def _download(self):
+        for k in self.dev:
             for dev, host in zip(self.dev[k], self.host[k]):
                 dev.copy_to_host(host)
 
     def _rebuild(self):
         """Device-side neighbour build (gpu/neighbours.py); the new lists, written in the
         scratch arrays, are swapped in.  When a list outgrows its arrays, they are grown
-        on the host as the CPU loop does (the old lists kept) and the build runs again."""
+        on the host as the CPU loop does (the old lists kept) and the build runs again.
+        Returns False (nothing rebuilt) when a position is not finite."""
         sim = self.sim
-        cutoff = 2.0 * float(sim.state.radii.max()) + float(sim.clock[loop.SKIN])
+        skin = float(sim.clock[loop.SKIN])
+        cutoff = 2.0 * float(sim.state.radii.max()) + skin
         while True:
             p, w = self.dev["pairs"], self.dev["walls"]
             needed, wall_needed, finite = self.lists.build(
-                cutoff, float(sim.clock[loop.SKIN]), self.dev["grains"], p, w,
-                self.dev["periodic"])
+                cutoff, skin, self.dev["grains"], p, w, self.dev["periodic"])
             if not finite:
-                raise FloatingPointError("a grain position is not finite: the run blew up "
-                                         f"before step {sim.step + 1}")
+                return False
             if needed <= p[1].size and wall_needed <= w[11].size:
                 break
             self._download()
@@ -217,10 +188,13 @@ class DeviceSimulation:
             p[a], p[b] = p[b], p[a]
             w[10 + a], w[13 + a] = w[13 + a], w[10 + a]
         sim.counters[loop.REBUILDS] += 1
+        return True
 
     def _launch(self, name, n, *args):
-        blocks = max(1, (n + THREADS - 1) // THREADS)
-        self.k[name][blocks, THREADS](*args)
+        """One thread per item; blocks of THREADS threads, or one block of n < THREADS
+        (a few grains, a single-thread reduction)."""
+        threads = max(1, min(THREADS, n))
+        self.k[name][(n + threads - 1) // threads, threads](*args)
 
     def _evaluate(self, share):
         g, p, w, per = (self.dev[k] for k in ("grains", "pairs", "walls", "periodic"))
@@ -229,8 +203,9 @@ class DeviceSimulation:
                      g[9], g[11], g[12], per[0], per[2], p[0], p[1], p[2], p[8], p[9], p[10],
                      w[0], w[1], w[5], w[6], w[7], w[10], w[11], w[12], w[16], w[17], g[14],
                      self.dissipation, share)
-        self._launch("totals", 1, w[10], w[11], w[16], w[6], w[8], self.dissipation,
-                     self.dev["loop"][0], share)
+        self._launch("totals_partial", rows(n), w[10], w[11], w[16], w[6], self.dissipation,
+                     self.totals)
+        self._launch("totals_finish", 1, self.totals, w[8], self.dev["loop"][0], share)
 
     def _correct(self, stage, dt):
         sim = self.sim
@@ -241,30 +216,70 @@ class DeviceSimulation:
                      self.gravity, p[9], p[6], p[7], p[8], p[10], w[10], w[16], w[17], g[4], g[5],
                      g[9], g[10], g[0], g[13], g[1], g[2], g[3], g[6], g[7], g[12], per[0],
                      per[2], self.dev["loop"][1], self.squares)
-        self._launch("bound", 1, self.squares, dt, self.dev["loop"][0])
+        self._launch("bound_partial", rows(sim.state.n), self.squares, self.partial)
+        self._launch("bound_finish", 1, self.partial, dt, self.dev["loop"][0])
 
-    def run(self, steps):
-        """Advance ``steps`` steps on the device (the step of core/loop.run_chunk)."""
+    def _check(self, reset):
+        """The reductions of core/loop._checks: array indexed by reductions.BAD ...
+        POTENTIAL; max_overlap is set back to zero when ``reset``."""
+        g = self.dev["grains"]
+        n = self.sim.state.n
+        self._launch("checks_partial", rows(n), g[0], g[1], g[2], g[4], g[9], g[10], g[12],
+                     g[14], self.gravity, reset, self.partial)
+        self._launch("checks_finish", 1, self.partial, self.checked)
+        self._launch("potential_partial", rows(n), g[0], g[9], g[12], self.gravity,
+                     self.checked, self.partial)
+        self._launch("potential_finish", 1, self.partial, self.checked)
+        return self.checked.copy_to_host()
+
+    def _status(self):
+        """core/loop._checks on the device results: a run_chunk status code."""
+        sim = self.sim
+        out = self._check(True)
+        if out[BAD] != 0.0:
+            return loop.NAN
+        if out[OVERLAP] > sim.clock[loop.OVERLAP_LIMIT]:
+            return loop.OVERLAP
+        kind, value = sim.counters[loop.COND_KIND], sim.clock[loop.COND_VALUE]
+        if kind == loop.MAX_SPEED_BELOW and math.sqrt(out[SPEED2]) < value:
+            return loop.CONDITION
+        if kind == loop.ENERGY_RATIO_BELOW and out[KINETIC] <= value * out[POTENTIAL]:
+            return loop.CONDITION
+        return loop.DONE
+
+    def chunk(self, nsteps):
+        """Up to ``nsteps`` steps on the device: (status, steps done), as run_chunk
+        (GROW never comes back: the lists are grown here)."""
         sim = self.sim
         self._upload()
-        g, w = self.dev["grains"], self.dev["walls"]
-        clock = self.dev["loop"][0]
+        try:
+            return self._steps(nsteps)
+        finally:
+            self._download()
+            sim.state.time = sim.time
+            sim.state.step = sim.step
+
+    def _steps(self, nsteps):
+        sim = self.sim
         counters = sim.counters
         dt = float(sim.clock[loop.DT])
         integrator = int(counters[loop.INTEGRATOR])
-        for _ in range(steps):
+        for s in range(nsteps):
+            w = self.dev["walls"]
             if counters[loop.FORCE_REBUILD] == 0:
-                self.k["decide"][1, 1](clock, w[5], w[9], w[6], self.control)
-            rebuild_now = counters[loop.FORCE_REBUILD] != 0 or self.control.copy_to_host()[0]
-            if rebuild_now:
-                self._rebuild()
+                self._launch("decide", 1, self.dev["loop"][0], w[5], w[9], w[6], self.control)
+            if counters[loop.FORCE_REBUILD] != 0 or self.control.copy_to_host()[0]:
+                if not self._rebuild():
+                    return loop.NAN, s
                 counters[loop.FORCE_REBUILD] = 0
-                g, w = self.dev["grains"], self.dev["walls"]
-                clock = self.dev["loop"][0]
+            g, w, clock = self.dev["grains"], self.dev["walls"], self.dev["loop"][0]
             if counters[loop.PRIMED] == 0:
                 self._evaluate(0.0)
                 self._correct(0, 0.0)
                 counters[loop.PRIMED] = 1
+                # grains that start too deep in each other or in a wall: stop before moving
+                if self._check(False)[OVERLAP] > sim.clock[loop.OVERLAP_LIMIT]:
+                    return loop.OVERLAP, s
             for stage in range(STAGES[integrator]):
                 self._launch("drift", sim.state.n, integrator, stage, dt,
                              counters[loop.HISTORY_STEPS] > 0, g[0], g[1], g[2], g[3], g[6],
@@ -276,6 +291,8 @@ class DeviceSimulation:
             self._launch("tick", 1, clock)
             counters[loop.STEP] += 1
             counters[loop.HISTORY_STEPS] += 1
-        self._download()
-        sim.state.time = sim.time
-        sim.state.step = sim.step
+            if counters[loop.STEP] % counters[loop.CHECK_INTERVAL] == 0 or s == nsteps - 1:
+                status = self._status()
+                if status != loop.DONE:
+                    return status, s + 1
+        return loop.DONE, nsteps
