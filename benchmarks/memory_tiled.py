@@ -1,6 +1,7 @@
 """Array memory per grain of a large bed made by tiling a settled one.
 
     python benchmarks/memory_tiled.py STATE SIZE NX NY [OUT]
+    NUMBA_ENABLE_CUDASIM=1 GRAINDYN_DEVICE_MEMORY=1 python benchmarks/memory_tiled.py ...
 
 STATE: a settled bed (x y z r per line, SI) in the box [0, SIZE]^2 with an open top,
 as written by ../shared/bench (state_settle_10000.txt has SIZE = 0.024).  The bed is
@@ -8,8 +9,12 @@ repeated NX x NY times in x and y inside one box, built with the LAMMPS-benchmar
 physics (Hertz, Mindlin, Tsuji), and advanced a few steps; prints N, the array bytes
 per grain (Simulation.memory_bytes), the peak RSS of the process, contacts and listed
 pairs per grain.  OUT, if given, receives the tiled bed in the same format (for
-benchmarks/lammps_bed.py).
+benchmarks/lammps_bed.py).  With GRAINDYN_DEVICE_MEMORY=1 the run uses backend gpu
+and also prints the bytes per grain the GPU engine allocates on the device
+(DeviceSimulation.memory_bytes; under the CUDA simulator this needs no GPU, the sizes
+are the same).
 """
+import os
 import resource
 import sys
 
@@ -20,6 +25,7 @@ def main(argv):
     if len(argv) not in (4, 5):
         sys.exit(__doc__)
     state_file, size, nx, ny = argv[0], float(argv[1]), int(argv[2]), int(argv[3])
+    device = os.environ.get("GRAINDYN_DEVICE_MEMORY") == "1"
     import graindyn as gd
     from graindyn.analysis.packing import coordination_number
 
@@ -35,12 +41,15 @@ def main(argv):
     walls = gd.box((0.0, 0.0, 0.0), (nx * size, ny * size, 10 * size))
     sim = gd.Simulation(state, [grain], gd.ContactModel("hertz", "tsuji", "mindlin",
                                                          limit_damping=False),
-                        walls=walls, dt=2e-6, skin=1e-4, check_interval=1000)
-    sim.run(steps=20)
+                        walls=walls, dt=2e-6, skin=1e-4, check_interval=1000,
+                        backend="gpu" if device else "cpu")
+    sim.run(steps=1 if device else 20)
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     print(f"N {state.n} array_bytes_per_grain {sim.memory_bytes() / state.n:.0f} "
           f"peak_rss_MB {rss / 1e6:.0f} contacts_per_grain {coordination_number(sim):.3f} "
           f"listed_pairs_per_grain {int(sim.pairs[0][-1]) / state.n:.3f}")
+    if device:
+        print(f"device_bytes_per_grain {sim._device.memory_bytes() / state.n:.0f}")
 
 
 if __name__ == "__main__":

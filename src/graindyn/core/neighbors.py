@@ -68,11 +68,6 @@ def grid_from_extent(low, high, n, cutoff, periodic_flag, periodic_lo, periodic_
                                                                     cutoff)
 
 
-def max_cells(n):
-    """Most cells grid_from_extent can make for N grains."""
-    return 4 * n + 64
-
-
 @kernel
 def _grid(positions, cutoff, periodic_flag, periodic_lo, periodic_length):
     """Cell grid of the current positions: (origin, size, counts)."""

@@ -157,6 +157,15 @@ class DeviceSimulation:
         if self.lists is None or self.lists.n != n:
             self.lists = DeviceNeighbours(n)
 
+    def memory_bytes(self):
+        """Bytes of every array this engine keeps on the device (after a chunk or an
+        upload): the simulation's arrays, the neighbour-build scratch and the reduction
+        rows.  The CUDA context and numba's own allocations are not counted."""
+        arrays = [a for bundle in self.dev.values() for a in bundle]
+        arrays += [self.dissipation, self.squares, self.model, self.params, self.gravity,
+                   self.control, self.totals, self.partial, self.checked]
+        return sum(a.nbytes for a in arrays) + self.lists.memory_bytes()
+
     def _download(self):
         for k in self.dev:
             for dev, host in zip(self.dev[k], self.host[k]):

@@ -19,8 +19,8 @@ import math
 import numpy as np
 from numba import cuda, float64, int64
 
-from ..core.neighbors import (carry_row, cell_id, grid_from_extent, max_cells, scan_grain,
-                              wall_row, wrap_coordinate)
+from ..core.neighbors import (carry_row, cell_id, grid_from_extent, scan_grain, wall_row,
+                              wrap_coordinate)
 from .device import device_function
 
 THREADS = 128          # threads per block; a power of two (tree reductions)
@@ -221,27 +221,46 @@ class DeviceNeighbours:
     def __init__(self, n):
         self.k = kernels()
         self.n = n
-        cells = max_cells(n)
-        self.cell = cuda.device_array(n, np.int64)
-        self.items = cuda.device_array(n, np.int64)
-        self.cell_start = cuda.device_array(cells + 1, np.int64)
-        self.fill = cuda.device_array(max(cells, n), np.int64)
+        # grain and cell indices fit in int32 (below 2^31 grains); the cell arrays are
+        # sized to the grid of the first build and grow when a later grid needs more
+        self.cell = cuda.device_array(n, np.int32)
+        self.items = cuda.device_array(n, np.int32)
+        self.cell_start = cuda.device_array(1, np.int32)
+        self.fill = cuda.device_array(n, np.int32)
         self.partial = cuda.device_array(((n + THREADS - 1) // THREADS, 6))
         self.box = [cuda.device_array(3) for _ in range(4)]      # low, high, origin, size
         self.counts = cuda.device_array(3, np.int64)
         self.bad = cuda.to_device(np.zeros(1, np.int64))
-        self._sums = {}
+        self._sums = []          # one block-total buffer per level of the prefix sum
 
-    def scan(self, a):
-        """In-place inclusive prefix sum of the int64 device array a (exact)."""
+    def memory_bytes(self):
+        """Bytes of the scratch arrays of the device build."""
+        arrays = [self.cell, self.items, self.cell_start, self.fill, self.partial,
+                  self.counts, self.bad, *self.box, *self._sums]
+        return sum(a.nbytes for a in arrays)
+
+    def scan(self, a, level=0):
+        """In-place inclusive prefix sum of the integer device array a (exact)."""
         blocks = (a.size + THREADS - 1) // THREADS
-        sums = self._sums.get(a.size)
-        if sums is None:
-            sums = self._sums[a.size] = cuda.device_array(blocks, np.int64)
+        if len(self._sums) == level:
+            self._sums.append(cuda.device_array(0, np.int64))
+        if self._sums[level].size < blocks:
+            self._sums[level] = cuda.device_array(blocks, np.int64)
+        sums = self._sums[level][:blocks]
         self.k["block_scan"][blocks, THREADS](a, sums)
         if blocks > 1:
-            self.scan(sums)
+            self.scan(sums, level + 1)
             self.k["add_offsets"][blocks, THREADS](a, sums)
+
+    def _cells(self):
+        """The cell-start table for the grid just built: (ncell + 1,) int32, grown when
+        the grid has more cells than any before (one read of the cell counts)."""
+        ncell = int(np.prod(self.counts.copy_to_host()))
+        if self.cell_start.size < ncell + 1:
+            size = int(1.2 * ncell) + 2
+            self.cell_start = cuda.device_array(size, np.int32)
+            self.fill = cuda.device_array(max(size, self.n), np.int32)
+        return self.cell_start[:ncell + 1]
 
     def build(self, cutoff, skin, grains, pairs, walls, periodic):
         """Rebuild into the scratch arrays of ``pairs`` and ``walls`` (device bundles in
@@ -261,22 +280,24 @@ class DeviceNeighbours:
         launch(k["extent"], n, positions, flag, lo, length, self.partial, self.bad)
         k["make_grid"][1, 1](self.partial, n, cutoff, flag, lo, length, low, high, origin,
                              size, self.counts)
-        launch(k["zero"], self.cell_start.size, self.cell_start)
-        launch(k["zero"], self.fill.size, self.fill)
+        if self.bad.copy_to_host()[0] != 0:       # no grid over non-finite positions
+            return 0, 0, False
+        cell_start = self._cells()
+        ncell = cell_start.size - 1
+        launch(k["zero"], ncell + 1, cell_start)
+        launch(k["zero"], ncell, self.fill)
         launch(k["bin_grains"], n, positions, origin, size, self.counts, self.cell,
-               self.cell_start)
-        self.scan(self.cell_start)
-        launch(k["place"], n, self.cell, self.cell_start, self.fill, self.items)
-        launch(k["sort_segments"], self.cell_start.size - 1, self.cell_start, self.items)
-        scan_args = (positions, radii, skin, self.cell, self.counts, self.cell_start,
+               cell_start)
+        self.scan(cell_start)
+        launch(k["place"], n, self.cell, cell_start, self.fill, self.items)
+        launch(k["sort_segments"], ncell, cell_start, self.items)
+        scan_args = (positions, radii, skin, self.cell, self.counts, cell_start,
                      self.items, flag, length, kind, geometry, offset)
         launch(k["count"], n, *scan_args, new_start, new_wall_start)
         self.scan(new_start)
         self.scan(new_wall_start)
         needed = int(new_start[n:n + 1].copy_to_host()[0])
         wall_needed = int(new_wall_start[n:n + 1].copy_to_host()[0])
-        if self.bad.copy_to_host()[0] != 0:
-            return needed, wall_needed, False
         if needed > partners.size or wall_needed > wall_ids.size:
             return needed, wall_needed, True
         launch(k["fill_lists"], n, *scan_args, new_start, new_partners, new_wall_start,
