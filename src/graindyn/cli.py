@@ -109,16 +109,18 @@ def info():
     from .core.integrators import NAMES
     from .physics import registry
 
-    gpu = "none found"
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
+    from .gpu import unavailable
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        gpu = unavailable()
+        if gpu is None:
             from numba import cuda
-            if cuda.is_available():
-                gpu = ", ".join(d.name.decode() if isinstance(d.name, bytes) else str(d.name)
-                                for d in cuda.list_devices())
-    except Exception as err:  # any failure to probe means no usable GPU
-        gpu = f"none ({type(err).__name__})"
+            names = [getattr(d, "name", "CUDA simulator") for d in cuda.list_devices()]
+            gpu = "backend gpu available: " + ", ".join(
+                n.decode() if isinstance(n, bytes) else str(n) for n in names)
+        else:
+            gpu = f"none: {gpu}"
     cache = _jit.CACHE_DIR
     size = sum(p.stat().st_size for p in cache.rglob("*") if p.is_file()) \
         if cache.exists() else 0
