@@ -27,7 +27,8 @@ from ..core.integrators.passes import correct_grain, drift_grain
 from ..core.walls import walls_advance
 from .device import device_function
 from .neighbours import DeviceNeighbours
-from .reductions import BAD, KINETIC, OVERLAP, POTENTIAL, SPEED2, rows
+from .reductions import (BAD, CHECK_OPS, KINETIC, MAX, OVERLAP, POTENTIAL, SPEED2, SUM,
+                         fold, ops_array, rows)
 from .reductions import kernels as reduction_kernels
 
 THREADS = 128          # threads per block of the per-grain kernels
@@ -154,6 +155,9 @@ class DeviceSimulation:
         self.totals = cuda.device_array((rows(n), 3 * sim.walls.kind.size + 3))
         self.partial = cuda.device_array((rows(n), 6))
         self.checked = cuda.device_array(6)
+        self.folded = cuda.device_array(max(6, self.totals.shape[1]))
+        self.ops = {"totals": ops_array([SUM] * self.totals.shape[1]),
+                    "bound": ops_array([MAX] * 3), "checks": ops_array(CHECK_OPS)}
         if self.lists is None or self.lists.n != n:
             self.lists = DeviceNeighbours(n)
 
@@ -163,7 +167,8 @@ class DeviceSimulation:
         rows.  The CUDA context and numba's own allocations are not counted."""
         arrays = [a for bundle in self.dev.values() for a in bundle]
         arrays += [self.dissipation, self.squares, self.model, self.params, self.gravity,
-                   self.control, self.totals, self.partial, self.checked]
+                   self.control, self.totals, self.partial, self.checked, self.folded,
+                   *self.ops.values()]
         return sum(a.nbytes for a in arrays) + self.lists.memory_bytes()
 
     def _download(self):
@@ -214,7 +219,8 @@ class DeviceSimulation:
                      self.dissipation, share)
         self._launch("totals_partial", rows(n), w[10], w[11], w[16], w[6], self.dissipation,
                      self.totals)
-        self._launch("totals_finish", 1, self.totals, w[8], self.dev["loop"][0], share)
+        fold(self.k, self.totals, self.ops["totals"], self.folded)
+        self._launch("totals_apply", 1, self.folded, w[8], self.dev["loop"][0], share)
 
     def _correct(self, stage, dt):
         sim = self.sim
@@ -226,7 +232,8 @@ class DeviceSimulation:
                      g[9], g[10], g[0], g[13], g[1], g[2], g[3], g[6], g[7], g[12], per[0],
                      per[2], self.dev["loop"][1], self.squares)
         self._launch("bound_partial", rows(sim.state.n), self.squares, self.partial)
-        self._launch("bound_finish", 1, self.partial, dt, self.dev["loop"][0])
+        fold(self.k, self.partial[:, :3], self.ops["bound"], self.folded)
+        self._launch("bound_apply", 1, self.folded, dt, self.dev["loop"][0])
 
     def _check(self, reset):
         """The reductions of core/loop._checks: array indexed by reductions.BAD ...
@@ -235,10 +242,11 @@ class DeviceSimulation:
         n = self.sim.state.n
         self._launch("checks_partial", rows(n), g[0], g[1], g[2], g[4], g[9], g[10], g[12],
                      g[14], self.gravity, reset, self.partial)
-        self._launch("checks_finish", 1, self.partial, self.checked)
+        fold(self.k, self.partial[:, :POTENTIAL], self.ops["checks"], self.checked)
         self._launch("potential_partial", rows(n), g[0], g[9], g[12], self.gravity,
                      self.checked, self.partial)
-        self._launch("potential_finish", 1, self.partial, self.checked)
+        fold(self.k, self.partial[:, POTENTIAL:], self.ops["checks"][POTENTIAL:],
+             self.checked[POTENTIAL:])
         return self.checked.copy_to_host()
 
     def _status(self):

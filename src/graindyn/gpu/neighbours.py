@@ -22,6 +22,8 @@ from numba import cuda, float64, int64
 from ..core.neighbors import (carry_row, cell_id, grid_from_extent, scan_grain, wall_row,
                               wrap_coordinate)
 from .device import device_function
+from .reductions import MAX, MIN, fold, ops_array
+from .reductions import kernels as reduction_kernels
 
 THREADS = 128          # threads per block; a power of two (tree reductions)
 _KERNELS = {}
@@ -79,17 +81,10 @@ def kernels():
                 partial[cuda.blockIdx.x, 3 + d] = high[0, d]
 
     @cuda.jit
-    def make_grid(partial, n, cutoff, flag, lo, length, low, high, origin, size, counts):
-        """Reduce the per-block boxes and build the grid (one thread)."""
-        if cuda.grid(1) != 0:
-            return
-        for d in range(3):
-            low[d] = partial[0, d]
-            high[d] = partial[0, 3 + d]
-            for b in range(1, partial.shape[0]):
-                low[d] = min(low[d], partial[b, d])
-                high[d] = max(high[d], partial[b, 3 + d])
-        grid_fn(low, high, n, cutoff, flag, lo, length, origin, size, counts)
+    def make_grid(box, n, cutoff, flag, lo, length, origin, size, counts):
+        """The grid over the box (low 3, high 3) of the grains (one thread)."""
+        if cuda.grid(1) == 0:
+            grid_fn(box[:3], box[3:], n, cutoff, flag, lo, length, origin, size, counts)
 
     @cuda.jit
     def zero(a):
@@ -219,7 +214,7 @@ class DeviceNeighbours:
     """Scratch arrays and the host side of the device rebuild for N grains."""
 
     def __init__(self, n):
-        self.k = kernels()
+        self.k = dict(kernels(), **reduction_kernels())
         self.n = n
         # grain and cell indices fit in int32 (below 2^31 grains); the cell arrays are
         # sized to the grid of the first build and grow when a later grid needs more
@@ -228,7 +223,9 @@ class DeviceNeighbours:
         self.cell_start = cuda.device_array(1, np.int32)
         self.fill = cuda.device_array(n, np.int32)
         self.partial = cuda.device_array(((n + THREADS - 1) // THREADS, 6))
-        self.box = [cuda.device_array(3) for _ in range(4)]      # low, high, origin, size
+        self.box = cuda.device_array(6)                          # low (3), high (3)
+        self.grid = [cuda.device_array(3) for _ in range(2)]     # origin, cell size
+        self.box_ops = ops_array([MIN] * 3 + [MAX] * 3)
         self.counts = cuda.device_array(3, np.int64)
         self.bad = cuda.to_device(np.zeros(1, np.int64))
         self._sums = []          # one block-total buffer per level of the prefix sum
@@ -236,7 +233,7 @@ class DeviceNeighbours:
     def memory_bytes(self):
         """Bytes of the scratch arrays of the device build."""
         arrays = [self.cell, self.items, self.cell_start, self.fill, self.partial,
-                  self.counts, self.bad, *self.box, *self._sums]
+                  self.counts, self.bad, self.box, *self.grid, self.box_ops, *self._sums]
         return sum(a.nbytes for a in arrays)
 
     def scan(self, a, level=0):
@@ -275,11 +272,11 @@ class DeviceNeighbours:
         wall_start, wall_ids, wall_history, new_wall_start, new_wall_ids, new_wall_history \
             = walls[10:16]
         flag, lo, length = periodic
-        low, high, origin, size = self.box
+        origin, size = self.grid
         self.bad.copy_to_device(np.zeros(1, np.int64))
         launch(k["extent"], n, positions, flag, lo, length, self.partial, self.bad)
-        k["make_grid"][1, 1](self.partial, n, cutoff, flag, lo, length, low, high, origin,
-                             size, self.counts)
+        fold(self.k, self.partial, self.box_ops, self.box)
+        k["make_grid"][1, 1](self.box, n, cutoff, flag, lo, length, origin, size, self.counts)
         if self.bad.copy_to_host()[0] != 0:       # no grid over non-finite positions
             return 0, 0, False
         cell_start = self._cells()

@@ -2,20 +2,26 @@
 energies of each force evaluation, the half-skin displacement bound, and the checks
 of core/loop._checks (non-finite values, largest overlap, largest speed, energies).
 
-Each is two kernels: one thread per CHUNK consecutive grains reduces them in grain
-order into a row of ``partial``, then one thread reduces the rows in order.  The order
-is fixed, so a run repeats to the last bit; maxima and minima equal the CPU's, sums
-differ from its grain-order sums only by association.
+Each is three steps: one thread per CHUNK consecutive grains reduces them in grain
+order into a row of ``partial``; ``fold`` reduces each column over the rows with one
+block (thread t takes rows t, t + width, ... in order, then a tree in shared memory);
+one thread applies the results.  The order is fixed, so a run repeats to the last
+bit; maxima and minima equal the CPU's, sums differ from its grain-order sums only by
+association.
 """
 import math
 
-from numba import cuda
+import numpy as np
+from numba import cuda, float64
 
 from ..core import loop
 
 CHUNK = 128            # grains per partial row
-# columns of the check partials
+FOLD = 256             # most threads of the folding block (a power of two)
+SUM, MAX, MIN = 0, 1, 2
+# columns of the check partials, and how each folds
 BAD, SPEED2, OVERLAP, KINETIC, LOW, POTENTIAL = range(6)
+CHECK_OPS = (MAX, MAX, MAX, SUM, MIN, SUM)
 _KERNELS = {}
 
 
@@ -24,10 +30,61 @@ def rows(n):
     return max(1, (n + CHUNK - 1) // CHUNK)
 
 
+def fold_width(nrows):
+    """Threads of the folding block for nrows rows: a power of two, at most FOLD."""
+    width = 1
+    while width < min(nrows, FOLD):
+        width *= 2
+    return width
+
+
+def fold(kernels, partial, ops, out):
+    """out[q] = SUM, MAX or MIN (device array ops[q]) of partial[:, q] over the rows."""
+    kernels["fold"][1, fold_width(partial.shape[0])](partial, ops, out)
+
+
+def ops_array(ops):
+    """The device array of fold operations."""
+    return cuda.to_device(np.asarray(ops, np.int64))
+
+
 def kernels():
     """The reduction kernels (compiled on first use, once per process)."""
     if _KERNELS:
         return _KERNELS
+
+    @cuda.jit
+    def fold(partial, ops, out):
+        """out[q] = sum, max or min (ops[q]) of column q over the rows (one block)."""
+        buf = cuda.shared.array(FOLD, float64)
+        t = cuda.threadIdx.x
+        width = cuda.blockDim.x
+        for q in range(partial.shape[1]):
+            op = ops[q]
+            acc = 0.0 if op == SUM else (-math.inf if op == MAX else math.inf)
+            for c in range(t, partial.shape[0], width):
+                if op == SUM:
+                    acc += partial[c, q]
+                elif op == MAX:
+                    acc = max(acc, partial[c, q])
+                else:
+                    acc = min(acc, partial[c, q])
+            buf[t] = acc
+            cuda.syncthreads()
+            step = width // 2
+            while step > 0:
+                if t < step:
+                    if op == SUM:
+                        buf[t] += buf[t + step]
+                    elif op == MAX:
+                        buf[t] = max(buf[t], buf[t + step])
+                    else:
+                        buf[t] = min(buf[t], buf[t + step])
+                cuda.syncthreads()
+                step //= 2
+            if t == 0:
+                out[q] = buf[0]
+            cuda.syncthreads()
 
     @cuda.jit
     def totals_partial(wall_start, wall_ids, contact_force, velocity, dissipation, partial):
@@ -49,25 +106,17 @@ def kernels():
                     partial[c, 3 * nw] += contact_force[q, d] * velocity[w, d]
 
     @cuda.jit
-    def totals_finish(partial, force, clock, share):
+    def totals_apply(folded, force, clock, share):
         """Wall forces [N]; dissipated energy [J] and wall work [J] added to the clock."""
         if cuda.grid(1) != 0:
             return
         nw = force.shape[0]
         for w in range(nw):
             for d in range(3):
-                f = 0.0
-                for c in range(partial.shape[0]):
-                    f += partial[c, 3 * w + d]
-                force[w, d] = f
-        power = lost_n = lost_t = 0.0
-        for c in range(partial.shape[0]):
-            power += partial[c, 3 * nw]
-            lost_n += partial[c, 3 * nw + 1]
-            lost_t += partial[c, 3 * nw + 2]
-        clock[loop.DISS_N] += lost_n
-        clock[loop.DISS_T] += lost_t
-        clock[loop.WALL_WORK] += power * share
+                force[w, d] = folded[3 * w + d]
+        clock[loop.DISS_N] += folded[3 * nw + 1]
+        clock[loop.DISS_T] += folded[3 * nw + 2]
+        clock[loop.WALL_WORK] += folded[3 * nw] * share
 
     @cuda.jit
     def bound_partial(squares, partial):
@@ -81,16 +130,11 @@ def kernels():
                 partial[c, k] = max(partial[c, k], squares[i, k])
 
     @cuda.jit
-    def bound_finish(partial, dt, clock):
+    def bound_apply(folded, dt, clock):
         """clock[MOVE] = max |r - r_ref| + max |v| dt + max |a| dt^2 / 2."""
-        if cuda.grid(1) != 0:
-            return
-        d2 = v2 = a2 = 0.0
-        for c in range(partial.shape[0]):
-            d2 = max(d2, partial[c, 0])
-            v2 = max(v2, partial[c, 1])
-            a2 = max(a2, partial[c, 2])
-        clock[loop.MOVE] = math.sqrt(d2) + math.sqrt(v2) * dt + 0.5 * math.sqrt(a2) * dt * dt
+        if cuda.grid(1) == 0:
+            clock[loop.MOVE] = (math.sqrt(folded[0]) + math.sqrt(folded[1]) * dt
+                                + 0.5 * math.sqrt(folded[2]) * dt * dt)
 
     @cuda.jit
     def checks_partial(positions, velocities, angular_velocities, forces, masses, inertias,
@@ -129,18 +173,6 @@ def kernels():
         partial[c, LOW] = low
 
     @cuda.jit
-    def checks_finish(partial, out):
-        if cuda.grid(1) != 0:
-            return
-        out[BAD] = out[SPEED2] = out[OVERLAP] = out[KINETIC] = 0.0
-        out[LOW] = math.inf
-        for c in range(partial.shape[0]):
-            for k in (BAD, SPEED2, OVERLAP):
-                out[k] = max(out[k], partial[c, k])
-            out[KINETIC] += partial[c, KINETIC]
-            out[LOW] = min(out[LOW], partial[c, LOW])
-
-    @cuda.jit
     def potential_partial(positions, masses, fixed, gravity, out, partial):
         """Row c: potential energy [J] of free grains above the lowest (out[LOW])."""
         c = cuda.grid(1)
@@ -155,14 +187,6 @@ def kernels():
                           + positions[i, 2] * gravity[2]) / g
                     potential += masses[i] * g * (h - out[LOW])
         partial[c, POTENTIAL] = potential
-
-    @cuda.jit
-    def potential_finish(partial, out):
-        if cuda.grid(1) != 0:
-            return
-        out[POTENTIAL] = 0.0
-        for c in range(partial.shape[0]):
-            out[POTENTIAL] += partial[c, POTENTIAL]
 
     _KERNELS.update(locals())
     return _KERNELS
