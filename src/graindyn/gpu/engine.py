@@ -18,7 +18,7 @@ checkpoint written on one backend resumes on the other.  Within a chunk:
 import math
 
 import numpy as np
-from numba import cuda
+from numba import cuda, float64
 
 from ..core import loop
 from ..core.contacts import pair_row, wall_row
@@ -27,11 +27,12 @@ from ..core.integrators.passes import correct_grain, drift_grain
 from ..core.walls import walls_advance
 from .device import device_function
 from .neighbours import DeviceNeighbours
-from .reductions import (BAD, CHECK_OPS, KINETIC, MAX, OVERLAP, POTENTIAL, SPEED2, SUM,
-                         fold, ops_array, rows)
+from .reductions import (BAD, CHECK_OPS, CHUNK, KINETIC, MAX, OVERLAP, POTENTIAL, SPEED2,
+                         SUM, fold, ops_array, rows)
 from .reductions import kernels as reduction_kernels
 
-THREADS = 128          # threads per block of the per-grain kernels
+# threads per block of the per-grain kernels: one block per row of the reductions
+THREADS = CHUNK
 _KERNELS = {}
 
 
@@ -44,6 +45,30 @@ def kernels():
     wall = device_function(wall_row)
     correct = device_function(correct_grain)
     advance = device_function(walls_advance)
+
+    @cuda.jit(device=True)
+    def block_rows(buf, values, row, ops):
+        """Reduce buf[t, q] over the threads of the block (SUM or MAX by ops[q], a fixed
+        tree) into row[q]; every thread of the block must call it."""
+        t = cuda.threadIdx.x
+        width = cuda.blockDim.x
+        cuda.syncthreads()
+        step = 1
+        while step < width:
+            step *= 2
+        step //= 2
+        while step > 0:
+            if t < step and t + step < width:
+                for q in range(values):
+                    if ops[q] == SUM:
+                        buf[t, q] += buf[t + step, q]
+                    else:
+                        buf[t, q] = max(buf[t, q], buf[t + step, q])
+            cuda.syncthreads()
+            step //= 2
+        if t == 0:
+            for q in range(values):
+                row[q] = buf[0, q]
 
     @cuda.jit
     def drift_kernel(integrator, stage, dt, started, positions, velocities,
@@ -65,8 +90,14 @@ def kernels():
                      materials, fixed, periodic_flag, periodic_length, start, partners,
                      history, pair_force, own, pair_torque_j, kind, geometry, offset,
                      velocity, material, wall_start, wall_ids, wall_history, wall_force,
-                     wall_torque, max_overlap, dissipation, dt):
+                     wall_torque, max_overlap, lost, ops, dt):
+        """Contact forces of grain i; the energy its contacts dissipate, summed over the
+        block into lost[block] (normal, tangential) [J]."""
+        buf = cuda.shared.array((THREADS, 2), float64)
         i = cuda.grid(1)
+        t = cuda.threadIdx.x
+        buf[t, 0] = 0.0
+        buf[t, 1] = 0.0
         if i < positions.shape[0]:
             dn, dt_ = pair(i, model, params, positions, velocities, angular_velocities, radii,
                            masses, materials, fixed, periodic_flag, periodic_length, start,
@@ -76,8 +107,9 @@ def kernels():
                           masses, materials, kind, geometry, offset, velocity, material,
                           wall_start, wall_ids, wall_history, wall_force, wall_torque,
                           max_overlap, dt)
-            dissipation[i, 0] = dn + wn
-            dissipation[i, 1] = dt_ + wt
+            buf[t, 0] = dn + wn
+            buf[t, 1] = dt_ + wt
+        block_rows(buf, 2, lost[cuda.blockIdx.x], ops)
 
     @cuda.jit
     def correct_kernel(integrator, stage, dt, started, dim, gravity, own, reverse_start,
@@ -85,16 +117,24 @@ def kernels():
                        wall_torque, forces, torques, masses, inertias, positions,
                        reference_positions, velocities, angular_velocities, orientations,
                        accelerations, angular_accelerations, fixed, periodic_flag,
-                       periodic_length, history, squares):
+                       periodic_length, history, bound, ops):
+        """Gather and correct grain i; the largest squared displacement since the last
+        build, speed and acceleration of the block go to bound[block]."""
+        buf = cuda.shared.array((THREADS, 3), float64)
         i = cuda.grid(1)
+        t = cuda.threadIdx.x
+        buf[t, 0] = 0.0
+        buf[t, 1] = 0.0
+        buf[t, 2] = 0.0
         if i < positions.shape[0]:
-            squares[i, 0], squares[i, 1], squares[i, 2] = correct(
+            buf[t, 0], buf[t, 1], buf[t, 2] = correct(
                 i, integrator, stage, dt, started, dim, gravity, own, reverse_start,
                 reverse_pairs, pair_force, pair_torque_j, wall_start, wall_force,
                 wall_torque, forces, torques, masses, inertias, positions,
                 reference_positions, velocities, angular_velocities, orientations,
                 accelerations, angular_accelerations, fixed, periodic_flag, periodic_length,
                 history)
+        block_rows(buf, 3, bound[cuda.blockIdx.x], ops)
 
     @cuda.jit
     def decide_kernel(clock, offset, reference_offset, velocity, control):
@@ -146,8 +186,7 @@ class DeviceSimulation:
         self.host = self._bundles()
         self.dev = {k: [cuda.to_device(a) for a in v] for k, v in self.host.items()}
         sim, n = self.sim, self.sim.state.n
-        self.dissipation = cuda.device_array((n, 2))
-        self.squares = cuda.device_array((n, 3))
+        self.lost = cuda.device_array((rows(n), 2))
         self.model = cuda.to_device(sim.model_ids)
         self.params = cuda.to_device(sim.params)
         self.gravity = cuda.to_device(sim.clock[loop.GX:loop.GZ + 1].copy())
@@ -157,7 +196,8 @@ class DeviceSimulation:
         self.checked = cuda.device_array(6)
         self.folded = cuda.device_array(max(6, self.totals.shape[1]))
         self.ops = {"totals": ops_array([SUM] * self.totals.shape[1]),
-                    "bound": ops_array([MAX] * 3), "checks": ops_array(CHECK_OPS)}
+                    "lost": ops_array([SUM] * 2), "bound": ops_array([MAX] * 3),
+                    "checks": ops_array(CHECK_OPS)}
         if self.lists is None or self.lists.n != n:
             self.lists = DeviceNeighbours(n)
 
@@ -166,7 +206,7 @@ class DeviceSimulation:
         upload): the simulation's arrays, the neighbour-build scratch and the reduction
         rows.  The CUDA context and numba's own allocations are not counted."""
         arrays = [a for bundle in self.dev.values() for a in bundle]
-        arrays += [self.dissipation, self.squares, self.model, self.params, self.gravity,
+        arrays += [self.lost, self.model, self.params, self.gravity,
                    self.control, self.totals, self.partial, self.checked, self.folded,
                    *self.ops.values()]
         return sum(a.nbytes for a in arrays) + self.lists.memory_bytes()
@@ -216,8 +256,8 @@ class DeviceSimulation:
         self._launch("force", n, self.model, self.params, g[0], g[1], g[2], g[8],
                      g[9], g[11], g[12], per[0], per[2], p[0], p[1], p[2], p[8], p[9], p[10],
                      w[0], w[1], w[5], w[6], w[7], w[10], w[11], w[12], w[16], w[17], g[14],
-                     self.dissipation, share)
-        self._launch("totals_partial", rows(n), w[10], w[11], w[16], w[6], self.dissipation,
+                     self.lost, self.ops["lost"], share)
+        self._launch("totals_partial", rows(n), w[10], w[11], w[16], w[6], self.lost,
                      self.totals)
         fold(self.k, self.totals, self.ops["totals"], self.folded)
         self._launch("totals_apply", 1, self.folded, w[8], self.dev["loop"][0], share)
@@ -230,8 +270,7 @@ class DeviceSimulation:
                      sim.counters[loop.HISTORY_STEPS] > 0, int(sim.counters[loop.DIM]),
                      self.gravity, p[9], p[6], p[7], p[8], p[10], w[10], w[16], w[17], g[4], g[5],
                      g[9], g[10], g[0], g[13], g[1], g[2], g[3], g[6], g[7], g[12], per[0],
-                     per[2], self.dev["loop"][1], self.squares)
-        self._launch("bound_partial", rows(sim.state.n), self.squares, self.partial)
+                     per[2], self.dev["loop"][1], self.partial, self.ops["bound"])
         fold(self.k, self.partial[:, :3], self.ops["bound"], self.folded)
         self._launch("bound_apply", 1, self.folded, dt, self.dev["loop"][0])
 

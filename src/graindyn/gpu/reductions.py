@@ -2,10 +2,12 @@
 energies of each force evaluation, the half-skin displacement bound, and the checks
 of core/loop._checks (non-finite values, largest overlap, largest speed, energies).
 
-Each is three steps: one thread per CHUNK consecutive grains reduces them in grain
-order into a row of ``partial``; ``fold`` reduces each column over the rows with one
-block (thread t takes rows t, t + width, ... in order, then a tree in shared memory);
-one thread applies the results.  The order is fixed, so a run repeats to the last
+Each is three steps: one row per CHUNK consecutive grains (the energy dissipated and
+the displacement bound come as rows straight from the force and correction kernels,
+reduced over each block of CHUNK threads by a tree in shared memory; the others are
+reduced by one thread per row, in grain order); ``fold`` reduces each column over the
+rows with one block (thread t takes rows t, t + width, ... in order, then a tree);
+one thread applies the results.  No per-grain scratch array is needed.  The order is fixed, so a run repeats to the last
 bit; maxima and minima equal the CPU's, sums differ from its grain-order sums only by
 association.
 """
@@ -87,18 +89,18 @@ def kernels():
             cuda.syncthreads()
 
     @cuda.jit
-    def totals_partial(wall_start, wall_ids, contact_force, velocity, dissipation, partial):
-        """Row c: force of grains c*CHUNK... on each wall (3 W), wall power, normal and
-        tangential dissipation."""
+    def totals_partial(wall_start, wall_ids, contact_force, velocity, lost, partial):
+        """Row c: force of grains c*CHUNK... on each wall (3 W), wall power, and the
+        normal and tangential energy they dissipated (lost[c], from the force kernel)."""
         c = cuda.grid(1)
         if c >= partial.shape[0]:
             return
         nw = velocity.shape[0]
         for q in range(partial.shape[1]):
             partial[c, q] = 0.0
-        for i in range(c * CHUNK, min(dissipation.shape[0], (c + 1) * CHUNK)):
-            partial[c, 3 * nw + 1] += dissipation[i, 0]
-            partial[c, 3 * nw + 2] += dissipation[i, 1]
+        partial[c, 3 * nw + 1] = lost[c, 0]
+        partial[c, 3 * nw + 2] = lost[c, 1]
+        for i in range(c * CHUNK, min(wall_start.size - 1, (c + 1) * CHUNK)):
             for q in range(wall_start[i], wall_start[i + 1]):
                 w = wall_ids[q]
                 for d in range(3):
@@ -117,17 +119,6 @@ def kernels():
         clock[loop.DISS_N] += folded[3 * nw + 1]
         clock[loop.DISS_T] += folded[3 * nw + 2]
         clock[loop.WALL_WORK] += folded[3 * nw] * share
-
-    @cuda.jit
-    def bound_partial(squares, partial):
-        c = cuda.grid(1)
-        if c >= partial.shape[0]:
-            return
-        for k in range(3):
-            partial[c, k] = 0.0
-        for i in range(c * CHUNK, min(squares.shape[0], (c + 1) * CHUNK)):
-            for k in range(3):
-                partial[c, k] = max(partial[c, k], squares[i, k])
 
     @cuda.jit
     def bound_apply(folded, dt, clock):
