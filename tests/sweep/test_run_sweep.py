@@ -102,15 +102,16 @@ def test_task_leaves_foreign_files_alone(calls, point):
 @pytest.fixture(scope="module")
 def interrupted(tmp_path_factory):
     """``graindyn sweep`` on a local cluster of one worker: the reference (short), a long
-    point (protocol.max_time = 0.3 s) and a point that breaks (overlap limit 1e-6).
+    point (protocol.max_time = 1 s: long enough to be caught running on a fast machine)
+    and a point that breaks (overlap limit 1e-6).
     Ctrl-C once the reference has finished and the long point has written two
     checkpoints; then the same command again."""
     folder = tmp_path_factory.mktemp("interrupted")
     path = write_sweep(folder, {"seeds": [1], "vary": [
-        {"parameter": "protocol.max_time", "values": [0.3]},
+        {"parameter": "protocol.max_time", "values": [1.0]},
         {"parameter": "integrator.overlap_limit", "values": [1e-6]}]})
     out = folder / "out"
-    reference, long = out / "reference" / "seed-1", out / "max_time=0.3" / "seed-1"
+    reference, long = out / "reference" / "seed-1", out / "max_time=1" / "seed-1"
     proc = cli("sweep", path, "--out", out, "--workers", "1")
     try:
         deadline = time.time() + 300
@@ -144,11 +145,11 @@ def test_interrupted_sweep_resumes_without_recomputing(interrupted):
     assert reference.read_text() == before["reference"]
     assert "1 finished earlier, 2 to run" in interrupted["second"]
     assert "finished reference" not in interrupted["second"]
-    long = out / "max_time=0.3" / "seed-1"
+    long = out / "max_time=1" / "seed-1"
     assert "resume from step" in (long / "run.log").read_text()
-    assert "finished max_time=0.3/seed-1 (resumed" in interrupted["second"]
+    assert "finished max_time=1/seed-1 (resumed" in interrupted["second"]
     results = json.loads((long / "results.json").read_text())
-    assert results["time_s"] == pytest.approx(0.3, rel=1e-3)
+    assert results["time_s"] == pytest.approx(1.0, rel=1e-3)
 
 
 def test_failed_point_is_reported_and_the_others_finish(interrupted):
