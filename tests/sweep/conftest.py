@@ -2,6 +2,7 @@
 around it, a stand-in for analysis.bauer.fit_power_law until that module lands, and
 ``python -m graindyn`` as a subprocess."""
 import copy
+import signal
 import subprocess
 import sys
 import types
@@ -43,12 +44,18 @@ def write_sweep(folder, sweep, base=None, name="sweep.toml"):
     return path
 
 
+def _default_sigint():
+    """A shell that starts the tests in the background makes them ignore SIGINT, and
+    children inherit that: give the sweep the SIGINT of a terminal."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def cli(*args, **kw):
     """``python -m graindyn ARGS`` as a real subprocess in its own session (so a
     SIGINT to its process group is a terminal's Ctrl-C), stdout and stderr merged."""
     return subprocess.Popen([sys.executable, "-m", "graindyn", *map(str, args)],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                            start_new_session=True, **kw)
+                            start_new_session=True, preexec_fn=_default_sigint, **kw)
 
 
 class _PowerLaw:
