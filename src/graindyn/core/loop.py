@@ -149,6 +149,24 @@ def _checks(grains, counters, clock):
 
 
 @kernel
+def rebuild_due(clock, offset, reference_offset, velocity):
+    """The half-skin rule: True when some grain (clock[MOVE], the bound of the last
+    correction) plus the walls (displacement since the last build + 2 |v| dt) may have
+    moved more than the skin by the end of this step.  Shared with the GPU."""
+    dt = clock[DT]
+    wall_move = 0.0
+    for w in range(offset.shape[0]):
+        d2 = 0.0
+        v2 = 0.0
+        for d in range(3):
+            d2 += (offset[w, d] - reference_offset[w, d]) ** 2
+            v2 += velocity[w, d] ** 2
+        wall_move = max(wall_move, math.sqrt(d2) + 2.0 * math.sqrt(v2) * dt)
+    grain_move = clock[MOVE]
+    return grain_move + max(grain_move, wall_move) > clock[SKIN]
+
+
+@kernel
 def _after(integrator, stage, dt, counters, gravity, grains, pairs, walls, periodic,
            integrator_history, block_scratch):
     """integrators.after_force with the arrays it needs taken out of the bundles."""
@@ -187,16 +205,7 @@ def run_chunk(model, params, grains, pairs, walls, periodic, clock, counters,
     for s in range(nsteps):
         rebuild_now = counters[FORCE_REBUILD] != 0
         if not rebuild_now:
-            grain_move = clock[MOVE]
-            wall_move = 0.0
-            for w in range(kind.size):
-                d2 = 0.0
-                v2 = 0.0
-                for d in range(3):
-                    d2 += (offset[w, d] - reference_offset[w, d]) ** 2
-                    v2 += velocity[w, d] ** 2
-                wall_move = max(wall_move, math.sqrt(d2) + 2.0 * math.sqrt(v2) * dt)
-            rebuild_now = grain_move + max(grain_move, wall_move) > skin
+            rebuild_now = rebuild_due(clock, offset, reference_offset, velocity)
         if rebuild_now:
             if not _all_finite(positions):
                 return NAN, s

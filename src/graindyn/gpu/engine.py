@@ -45,6 +45,7 @@ def kernels():
     wall = device_function(wall_row)
     correct = device_function(correct_grain)
     advance = device_function(walls_advance)
+    due = device_function(loop.rebuild_due)
 
     @cuda.jit(device=True)
     def block_rows(buf, values, row, ops):
@@ -138,21 +139,10 @@ def kernels():
 
     @cuda.jit
     def decide_kernel(clock, offset, reference_offset, velocity, control):
-        """control[0] = 1 when the lists must be rebuilt before this step: the half-skin
-        rule of core/loop.run_chunk (one thread)."""
-        if cuda.grid(1) != 0:
-            return
-        dt = clock[loop.DT]
-        wall_move = 0.0
-        for w in range(offset.shape[0]):
-            d2 = 0.0
-            v2 = 0.0
-            for d in range(3):
-                d2 += (offset[w, d] - reference_offset[w, d]) ** 2
-                v2 += velocity[w, d] ** 2
-            wall_move = max(wall_move, math.sqrt(d2) + 2.0 * math.sqrt(v2) * dt)
-        grain_move = clock[loop.MOVE]
-        control[0] = 1 if grain_move + max(grain_move, wall_move) > clock[loop.SKIN] else 0
+        """control[0] = 1 when the lists must be rebuilt before this step
+        (core/loop.rebuild_due, one thread)."""
+        if cuda.grid(1) == 0:
+            control[0] = 1 if due(clock, offset, reference_offset, velocity) else 0
 
     @cuda.jit
     def tick_kernel(clock):
