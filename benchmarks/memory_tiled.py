@@ -11,7 +11,7 @@ per grain (Simulation.memory_bytes), the peak RSS of the process, contacts and l
 pairs per grain.  OUT, if given, receives the tiled bed in the same format (for
 benchmarks/lammps_bed.py).  With GRAINDYN_DEVICE_MEMORY=1 the run uses backend gpu
 and also prints the bytes per grain the GPU engine allocates on the device
-(DeviceSimulation.memory_bytes; under the CUDA simulator this needs no GPU, the sizes
+(DeviceEnsemble.memory_bytes; under the CUDA simulator this needs no GPU, the sizes
 are the same).
 """
 import os

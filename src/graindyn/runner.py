@@ -181,10 +181,15 @@ class _Driver:
         return results
 
 
+# matplotlib is not thread-safe; runs of a gpu.batch.Batch draw from several threads
+_DRAWING = threading.Lock()
+
+
 def draw(rundir, protocol, results=None):
     """(Re)draw the figures of a run from its files; returns their paths."""
     results = results if results is not None else rundir.results()
-    return protocol.figures(rundir, Series(rundir.path / "series.csv").read(), results)
+    with _DRAWING:
+        return protocol.figures(rundir, Series(rundir.path / "series.csv").read(), results)
 
 
 def _threads(threads):

@@ -16,6 +16,11 @@ run itself (not computed twice).  Layout of the sweep directory:
     summary.csv, summary.json  one row per point; mean and std over seeds per value
     (protocol tables and figures, e.g. bauer_vertical.md, figures/hs_eta_vertical.png)
 
+Runs whose config says ``run.backend = "gpu"`` do not go to Dask (unless a scheduler
+or client is given): they run in this process as one GPU ensemble (gpu/batch.py), each
+run's protocol in its own thread and their chunks launched together, each run giving
+the numbers it gives alone.
+
 Running the same command again skips finished runs (results.json present), resumes the
 interrupted ones from their last checkpoint and retries the failed ones (error.txt).
 
@@ -29,6 +34,7 @@ import contextlib
 import copy
 import csv
 import dataclasses
+import functools
 import importlib
 import json
 import math
@@ -513,11 +519,51 @@ def run(sweep: Sweep, out, scheduler=None, workers=None, threads_per_worker=1,
     todo = [p for p in runs if not finished(out / p.name)]
     say(f"sweep {sweep.path.name}: {len(runs)} runs ({len(sweep.points)} points), "
         f"{len(runs) - len(todo)} finished earlier, {len(todo)} to run, into {out}")
+    batched = [p for p in todo if p.config.run.backend == "gpu"] \
+        if scheduler is None and client is None else []
+    todo = [p for p in todo if p not in batched]
+    if batched:
+        _run_batched(batched, out, threads, say)
     if todo:
         with _dask_client(scheduler, workers, threads, len(todo), client) as (c, where):
             say(f"running on {where}")
             _submit_all(c, todo, out, threads, say)
     return finish(sweep, out, say)
+
+
+def _say_outcome(say, head, p, outcome, out):
+    """One line for a run that ended."""
+    if outcome["status"] == "finished":
+        say(f"{head} finished {p.name} ({outcome['how']}, {outcome['seconds']:.1f} s)",
+            style="green")
+    else:
+        say(f"{head} FAILED {p.name}: {outcome['error']} (see "
+            f"{out / p.name / ERROR_FILE})", style="bold red")
+
+
+def _run_batched(todo, out, threads, say):
+    """Runs with backend gpu, all in this process as one ensemble on the GPU
+    (gpu/batch.py: each run's protocol in its own thread, their chunks launched
+    together); each gets the numbers it gets alone."""
+    from .gpu.batch import Batch
+
+    say(f"running {len(todo)} run(s) with backend gpu together, as one GPU ensemble")
+    jobs = [functools.partial(run_point, p.config, str(out / p.name), threads)
+            for p in todo]
+    ended = []
+
+    def done(index, outcome):
+        ended.append(index)
+        _say_outcome(say, f"[{len(ended)}/{len(todo)}]", todo[index], outcome, out)
+
+    batch = Batch()
+    try:
+        batch.run(jobs, done)
+    except KeyboardInterrupt:
+        raise SweepInterrupted(
+            f"interrupted after {len(ended)} of {len(todo)} runs: the running ones keep "
+            "their last checkpoint; rerun the same command to continue") from None
+    say(f"the GPU ensemble ran {batch.rounds} rounds of chunks")
 
 
 def _submit_all(client, todo, out, threads, say):
@@ -536,13 +582,7 @@ def _submit_all(client, todo, out, threads, say):
             p = futures[future]
             outcome = _outcome(future, out / p.name)
             done += 1
-            head = f"[{done}/{len(todo)}]"
-            if outcome["status"] == "finished":
-                say(f"{head} finished {p.name} ({outcome['how']}, "
-                    f"{outcome['seconds']:.1f} s)", style="green")
-            else:
-                say(f"{head} FAILED {p.name}: {outcome['error']} (see "
-                    f"{out / p.name / ERROR_FILE})", style="bold red")
+            _say_outcome(say, f"[{done}/{len(todo)}]", p, outcome, out)
     except KeyboardInterrupt:
         client.cancel(list(futures))
         raise SweepInterrupted(

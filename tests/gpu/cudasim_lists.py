@@ -12,7 +12,7 @@ from numba import cuda
 import graindyn as gd
 from graindyn.core import loop
 from graindyn.core.neighbors import rebuild
-from graindyn.gpu.engine import DeviceSimulation
+from graindyn.gpu.engine import DeviceEnsemble
 
 
 def make():
@@ -57,10 +57,10 @@ def compare(a, b):
 
 def main():
     cpu, gpu = make(), make()
-    device = DeviceSimulation(gpu)
+    device = DeviceEnsemble([gpu])
     device._upload()
     cpu_rebuild(cpu)
-    device._rebuild()
+    device._rebuild(np.ones(1, np.int64))
     device._download()
     first = compare(lists(cpu), lists(gpu))
     grown = [int(cpu.pairs[1].size), int(gpu.pairs[1].size)]
@@ -75,7 +75,7 @@ def main():
             mw, sim.wall_contacts[2].shape[1])
     cpu_rebuild(cpu)
     device._upload()
-    device._rebuild()
+    device._rebuild(np.ones(1, np.int64))
     device._download()
     second = compare(lists(cpu), lists(gpu))
     rng = np.random.default_rng(9)

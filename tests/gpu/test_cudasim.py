@@ -31,6 +31,16 @@ def _jobs(folder):
     jobs["checks"] = [str(SCRIPT), "checks"]
     jobs["lists"] = [str(SCRIPT.with_name("cudasim_lists.py"))]
     jobs["scenarios"] = [str(SCRIPT.with_name("cudasim_scenarios.py")), "60"]
+    jobs["ensemble"] = [str(SCRIPT.with_name("cudasim_ensemble.py"))]
+    short = TINY.replace("max_time = 1e-3", "max_time = 4e-4")
+    for backend in ("cpu", "gpu"):
+        where = folder / f"sweep-{backend}"
+        where.mkdir()
+        (where / "base.toml").write_text(short.replace("seed = 3\n",
+                                                       f'seed = 3\nbackend = "{backend}"\n'))
+        (where / "sweep.toml").write_text(SWEEP)
+        jobs[f"sweep-{backend}"] = ["-m", "graindyn", "sweep", str(where / "sweep.toml"),
+                                    "--out", str(where / "out"), "--workers", "1"]
     for backend in ("cpu", "gpu"):
         jobs[f"run-{backend}"] = ["-m", "graindyn", "run", str(config), "--out",
                                   str(folder / backend), "--backend", backend,
@@ -180,3 +190,55 @@ def test_cli_run_with_backend_gpu_writes_the_cpu_run(simulated):
             for b in ("cpu", "gpu"))
     assert a.shape == b.shape and a.shape[0] >= 3
     assert np.allclose(a, b, rtol=1e-10, atol=0.0)
+
+
+def test_simulated_ensemble_member_equals_the_system_alone(simulated):
+    """Four different systems (two walled beds, one stopped early by its condition, one
+    failing with an overlap before its first step, and a periodic bed with another
+    material, time step, gravity and check interval) advanced as one ensemble: each
+    ends with the outcome, step count, rebuild count and every array of its snapshot
+    equal to the same system run alone."""
+    out = json.loads(simulated("ensemble").strip().splitlines()[-1])
+    assert out["alone"] == out["ensemble"] == ["done", "done", "condition", "OverlapError"]
+    assert out["steps"][0] == out["steps"][1] == [30, 30, 7, 0]
+    assert out["rebuilds"][0] == out["rebuilds"][1]
+    assert min(out["rebuilds"][0][:3]) >= 1 and min(out["contacts"][:2]) > 0
+    assert out["differ"] == [[], [], [], []]
+
+
+SWEEP = """
+base = "base.toml"
+seeds = [3]
+
+[[vary]]
+parameter = "materials.quartz.restitution"
+values = [0.6]
+"""
+
+
+def test_sweep_with_backend_gpu_runs_its_points_as_one_ensemble(simulated):
+    """`graindyn sweep` on a base config with backend gpu (simulated): its two runs go
+    through one GPU ensemble (each run's protocol, outputs and figures in its own
+    thread, the chunks launched together) and give the results of the same sweep on
+    the CPU (to 1e-10); the two runs differ from each other."""
+    import numpy as np
+
+    log = simulated("sweep-gpu")
+    simulated("sweep-cpu")
+    assert "as one GPU ensemble" in log and "rounds of chunks" in log
+    results = {}
+    for backend in ("cpu", "gpu"):
+        out = simulated.folder / f"sweep-{backend}" / "out"
+        assert not list(out.glob("*/*/error.txt"))
+        results[backend] = {p.parent.parent.name: json.loads(p.read_text())
+                            for p in out.glob("*/seed-3/results.json")}
+    assert sorted(results["gpu"]) == sorted(results["cpu"]) == ["reference",
+                                                                 "restitution=0.6"]
+    for name, cpu in results["cpu"].items():
+        gpu = results["gpu"][name]
+        assert gpu["steps"] == cpu["steps"] > 100
+        for key in ("packing_fraction", "apparent_weight_ratio", "bed_height_m"):
+            assert gpu[key] == pytest.approx(cpu[key], rel=1e-10), (name, key)
+    a, b = results["gpu"]["reference"], results["gpu"]["restitution=0.6"]
+    assert not np.isclose(a["energy_J"]["dissipated_normal"],
+                          b["energy_J"]["dissipated_normal"], rtol=1e-3)

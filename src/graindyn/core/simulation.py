@@ -252,10 +252,15 @@ class Simulation:
     def _chunk(self, nsteps):
         """Run up to nsteps compiled steps, growing storage as needed."""
         if self.backend == "gpu":
+            from ..gpu.batch import current
+            batch = current()
+            if batch is not None:            # one job of a gpu.batch.Batch
+                return batch.chunk(self, nsteps)
             if self._device is None:
-                from ..gpu.engine import DeviceSimulation
-                self._device = DeviceSimulation(self)
-            return self._device.chunk(nsteps)
+                from ..gpu.engine import DeviceEnsemble
+                self._device = DeviceEnsemble([self])
+            status, done = self._device.chunk([nsteps])
+            return int(status[0]), int(done[0])
         blocks = block_count(self.state.n, numba.get_num_threads())
         if self.block_scratch.size != blocks:      # the thread count changed
             self.block_scratch = np.zeros(blocks)
@@ -291,6 +296,33 @@ class Simulation:
         Returns "done", "condition" or "stopped"; raises SimulationError on NaN or
         blow-up.
         """
+        for trigger, _ in every:
+            if not isinstance(trigger, Periodic):
+                raise TypeError("every= takes (Periodic, callback) pairs")
+        periods = [(trigger.period(self.dt), cb) for trigger, cb in every]
+        end = self.begin_run(steps, time, until)
+        try:
+            while self.step < end:
+                status, _ = self._chunk(self.chunk_size(end, max_chunk,
+                                                        [p for p, _ in periods]))
+                for period, cb in periods:
+                    if self.step % period == 0:
+                        cb(self)
+                if status == loop.CONDITION:
+                    return "condition"
+                error = self.failure(status)
+                if error is not None:
+                    raise error
+                if between is not None and between(self):
+                    return "stopped"
+        finally:
+            self.counters[loop.COND_KIND] = loop.NO_CONDITION
+        return "done"
+
+    def begin_run(self, steps, time, until):
+        """Set up a run of ``steps`` steps or ``time`` seconds with the stop condition
+        ``until`` (the Gear schemes' start-up runs here); returns the step it ends at.
+        The caller sets COND_KIND back to NO_CONDITION when the run ends."""
         if steps is None and time is None:
             raise ValueError("run needs steps= or time= (an upper bound, also with until=)")
         if steps is None:
@@ -301,48 +333,42 @@ class Simulation:
             self._start_derivatives()
         self.counters[loop.COND_KIND] = until.kind if until is not None else loop.NO_CONDITION
         self.clock[loop.COND_VALUE] = until.value if until is not None else 0.0
-        periods = [(trigger.period(self.dt), cb) for trigger, cb in every]
-        for trigger, _ in every:
-            if not isinstance(trigger, Periodic):
-                raise TypeError("every= takes (Periodic, callback) pairs")
-        end = self.step + steps
-        try:
-            while self.step < end:
-                n = min(end - self.step, max_chunk)
-                for period, _ in periods:
-                    n = min(n, period - self.step % period)
-                check = int(self.counters[loop.CHECK_INTERVAL])
-                aligned = (self.step + n) // check * check - self.step
-                status, _ = self._chunk(aligned if aligned > 0 else n)
-                for period, cb in periods:
-                    if self.step % period == 0:
-                        cb(self)
-                if status == loop.CONDITION:
-                    return "condition"
-                if status == loop.NAN:
-                    report = self.dt_report
-                    raise SimulationError(
-                        f"non-finite position, velocity or force at step {self.step} "
-                        f"(t = {self.time:.6g} s): the time step may be too large for the "
-                        f"stiffness (dt = {self.dt:.3g} s, {report['fraction']:.3g} of the "
-                        f"{report['criterion']} {report['critical_time_s']:.3g} s), or "
-                        "grains started deep inside each other or a wall")
-                if status == loop.OVERLAP:
-                    limit = self.clock[loop.OVERLAP_LIMIT]
-                    if self.step == 0:
-                        raise OverlapError(
-                            f"an overlap exceeds {limit:.3g} of the smaller radius before the "
-                            "first step: grains start deep inside each other or behind a "
-                            "wall (check the initial positions and the container)")
-                    raise OverlapError(
-                        f"an overlap exceeded {limit:.3g} of the smaller radius at step "
-                        f"{self.step} (t = {self.time:.6g} s): grains are too soft for the "
-                        "load or the time step is too large")
-                if between is not None and between(self):
-                    return "stopped"
-        finally:
-            self.counters[loop.COND_KIND] = loop.NO_CONDITION
-        return "done"
+        return self.step + steps
+
+    def failure(self, status):
+        """The SimulationError for a run_chunk status code (NAN, OVERLAP) at the current
+        step, with what to check; None for the others."""
+        if status == loop.NAN:
+            report = self.dt_report
+            return SimulationError(
+                f"non-finite position, velocity or force at step {self.step} "
+                f"(t = {self.time:.6g} s): the time step may be too large for the "
+                f"stiffness (dt = {self.dt:.3g} s, {report['fraction']:.3g} of the "
+                f"{report['criterion']} {report['critical_time_s']:.3g} s), or "
+                "grains started deep inside each other or a wall")
+        if status == loop.OVERLAP:
+            limit = self.clock[loop.OVERLAP_LIMIT]
+            if self.step == 0:
+                return OverlapError(
+                    f"an overlap exceeds {limit:.3g} of the smaller radius before the "
+                    "first step: grains start deep inside each other or behind a "
+                    "wall (check the initial positions and the container)")
+            return OverlapError(
+                f"an overlap exceeded {limit:.3g} of the smaller radius at step "
+                f"{self.step} (t = {self.time:.6g} s): grains are too soft for the "
+                "load or the time step is too large")
+        return None
+
+    def chunk_size(self, end, max_chunk, periods=()):
+        """Steps of the next chunk of a run ending at step ``end``: at most max_chunk,
+        cut where a period falls, and ending on a multiple of check_interval where it
+        can (so the stop condition is tested at the same steps however a run is cut)."""
+        n = min(end - self.step, max_chunk)
+        for period in periods:
+            n = min(n, period - self.step % period)
+        check = int(self.counters[loop.CHECK_INTERVAL])
+        aligned = (self.step + n) // check * check - self.step
+        return aligned if aligned > 0 else n
 
     # ------------------------------------------------------------------ snapshots
     def snapshot(self):

@@ -1,19 +1,25 @@
 """The soft-particle step on the GPU (issue 6): the step of core/loop.run_chunk, one
 CUDA thread per grain, built from the CPU's own per-grain functions
 (contacts.pair_row and wall_row, integrators.passes.drift_grain and correct_grain,
-walls.walls_advance) through device.device_function.
+walls.walls_advance) through device.device_function, for an ensemble of K independent
+systems advanced by one set of kernel launches (gpu/layout.py; a single simulation is
+the case K = 1).  Systems may differ in grains, walls, materials, time step, gravity,
+periodicity and stop condition; they share the contact model and the integrator.
 
-``Simulation(..., backend="gpu")`` runs its chunks here: the arrays go to the device at
+``Simulation(..., backend="gpu")`` runs its chunks here, and so does
+``Ensemble(..., backend="gpu")`` (core/ensemble.py): the arrays go to the device at
 the start of a chunk and come back at its end, so everything between chunks (triggers,
 outputs, protocols, checkpoints) sees the same host arrays as on the CPU, and a
 checkpoint written on one backend resumes on the other.  Within a chunk:
 * forces, contact histories, walls and the integrator advance on the device;
 * the neighbour lists are built on the device (gpu/neighbours.py) when the half-skin
-  rule, evaluated on the device, asks for it; the host reads that flag back each step,
-  and the list sizes at each rebuild;
+  rule, evaluated on the device for each system, asks for it; the host reads those
+  flags back each step, and the list sizes at each rebuild;
 * wall totals, energies, the displacement bound and the checks of run_chunk (non-finite
   values, overlap, stop condition, every check_interval steps) are device reductions
-  (gpu/reductions.py).
+  (gpu/reductions.py), per system; a system that stops (its condition, a NaN, an
+  overlap, or the end of its steps) is masked out while the others go on.
+System k of an ensemble gives the same numbers, to the bit, as the same system alone.
 """
 import math
 
@@ -26,13 +32,12 @@ from ..core.integrators import STAGES
 from ..core.integrators.passes import correct_grain, drift_grain
 from ..core.walls import walls_advance
 from .device import device_function
+from .layout import ROW, SCRATCH, Layout, bundles, row_grain
 from .neighbours import DeviceNeighbours
-from .reductions import (BAD, CHECK_OPS, CHUNK, KINETIC, MAX, OVERLAP, POTENTIAL, SPEED2,
-                         SUM, fold, ops_array, rows)
+from .reductions import (BAD, CHECK_OPS, KINETIC, MAX, OVERLAP, POTENTIAL, SPEED2, SUM,
+                         block_rows, fold, ops_array)
 from .reductions import kernels as reduction_kernels
 
-# threads per block of the per-grain kernels: one block per row of the reductions
-THREADS = CHUNK
 _KERNELS = {}
 
 
@@ -47,298 +52,346 @@ def kernels():
     advance = device_function(walls_advance)
     due = device_function(loop.rebuild_due)
 
-    @cuda.jit(device=True)
-    def block_rows(buf, values, row, ops):
-        """Reduce buf[t, q] over the threads of the block (SUM or MAX by ops[q], a fixed
-        tree) into row[q]; every thread of the block must call it."""
+    @cuda.jit
+    def drift_kernel(row_first, row_system, mask, integrator, stage, clock, started,
+                     positions, velocities, angular_velocities, orientations, accelerations,
+                     angular_accelerations, fixed, history):
+        k, i, ok = row_grain(row_first, row_system, mask)
+        if ok:
+            drift(i, integrator, stage, clock[k, loop.DT], started[k] != 0, positions,
+                  velocities, angular_velocities, orientations, accelerations,
+                  angular_accelerations, fixed, history)
+
+    @cuda.jit
+    def walls_kernel(wb, mask, motion_kind, motion, base, offset, velocity, force, clock):
+        """System k's walls moved over its step (thread k)."""
+        k = cuda.grid(1)
+        if k < mask.size and mask[k] != 0:
+            a, b = wb[k], wb[k + 1]
+            advance(motion_kind[a:b], motion[a:b], base[a:b], offset[a:b], velocity[a:b],
+                    force[a:b], clock[k, loop.TIME], clock[k, loop.DT])
+
+    @cuda.jit
+    def force_kernel(row_first, row_system, mask, model, params, positions, velocities,
+                     angular_velocities, radii, masses, materials, fixed, periodic_flag,
+                     periodic_length, start, partners, history, pair_force, own,
+                     pair_torque_j, kind, geometry, offset, velocity, material, wall_start,
+                     wall_ids, wall_history, wall_force, wall_torque, max_overlap, lost, ops,
+                     clock, scale, divisor, table):
+        """Contact forces of grain i over a share scale * dt / divisor of its system's
+        step, with its system's pair table params[table[k]]; the energy its contacts
+        dissipate, summed over the block (one row) into lost[row] (normal, tangential)
+        [J]."""
+        buf = cuda.shared.array((ROW, 2), float64)
         t = cuda.threadIdx.x
-        width = cuda.blockDim.x
-        cuda.syncthreads()
-        step = 1
-        while step < width:
-            step *= 2
-        step //= 2
-        while step > 0:
-            if t < step and t + step < width:
-                for q in range(values):
-                    if ops[q] == SUM:
-                        buf[t, q] += buf[t + step, q]
-                    else:
-                        buf[t, q] = max(buf[t, q], buf[t + step, q])
-            cuda.syncthreads()
-            step //= 2
-        if t == 0:
-            for q in range(values):
-                row[q] = buf[0, q]
-
-    @cuda.jit
-    def drift_kernel(integrator, stage, dt, started, positions, velocities,
-                     angular_velocities, orientations, accelerations, angular_accelerations,
-                     fixed, history):
-        i = cuda.grid(1)
-        if i < positions.shape[0]:
-            drift(i, integrator, stage, dt, started, positions, velocities,
-                  angular_velocities, orientations, accelerations, angular_accelerations,
-                  fixed, history)
-
-    @cuda.jit
-    def walls_kernel(motion_kind, motion, base, offset, velocity, force, clock, dt):
-        if cuda.grid(1) == 0:
-            advance(motion_kind, motion, base, offset, velocity, force, clock[loop.TIME], dt)
-
-    @cuda.jit
-    def force_kernel(model, params, positions, velocities, angular_velocities, radii, masses,
-                     materials, fixed, periodic_flag, periodic_length, start, partners,
-                     history, pair_force, own, pair_torque_j, kind, geometry, offset,
-                     velocity, material, wall_start, wall_ids, wall_history, wall_force,
-                     wall_torque, max_overlap, lost, ops, dt):
-        """Contact forces of grain i; the energy its contacts dissipate, summed over the
-        block into lost[block] (normal, tangential) [J]."""
-        buf = cuda.shared.array((THREADS, 2), float64)
-        i = cuda.grid(1)
-        t = cuda.threadIdx.x
+        k, i, ok = row_grain(row_first, row_system, mask)
         buf[t, 0] = 0.0
         buf[t, 1] = 0.0
-        if i < positions.shape[0]:
-            dn, dt_ = pair(i, model, params, positions, velocities, angular_velocities, radii,
-                           masses, materials, fixed, periodic_flag, periodic_length, start,
-                           partners, history, pair_force, own, pair_torque_j, max_overlap,
-                           dt)
-            wn, wt = wall(i, model, params, positions, velocities, angular_velocities, radii,
+        if ok:
+            share = scale * clock[k, loop.DT] / divisor
+            own_params = params[table[k]]
+            dn, dt_ = pair(i, model, own_params, positions, velocities, angular_velocities, radii,
+                           masses, materials, fixed, periodic_flag[k], periodic_length[k],
+                           start[k:], partners, history, pair_force, own, pair_torque_j,
+                           max_overlap, share)
+            wn, wt = wall(i, model, own_params, positions, velocities, angular_velocities, radii,
                           masses, materials, kind, geometry, offset, velocity, material,
-                          wall_start, wall_ids, wall_history, wall_force, wall_torque,
-                          max_overlap, dt)
+                          wall_start[k:], wall_ids, wall_history, wall_force, wall_torque,
+                          max_overlap, share)
             buf[t, 0] = dn + wn
             buf[t, 1] = dt_ + wt
         block_rows(buf, 2, lost[cuda.blockIdx.x], ops)
 
     @cuda.jit
-    def correct_kernel(integrator, stage, dt, started, dim, gravity, own, reverse_start,
-                       reverse_pairs, pair_force, pair_torque_j, wall_start, wall_force,
-                       wall_torque, forces, torques, masses, inertias, positions,
-                       reference_positions, velocities, angular_velocities, orientations,
-                       accelerations, angular_accelerations, fixed, periodic_flag,
-                       periodic_length, history, bound, ops):
-        """Gather and correct grain i; the largest squared displacement since the last
-        build, speed and acceleration of the block go to bound[block]."""
-        buf = cuda.shared.array((THREADS, 3), float64)
-        i = cuda.grid(1)
+    def correct_kernel(row_first, row_system, mask, integrator, stage, clock, scale,
+                       started, dim, own, reverse_start, reverse_pairs, pair_force,
+                       pair_torque_j, wall_start, wall_force, wall_torque, forces, torques,
+                       masses, inertias, positions, reference_positions, velocities,
+                       angular_velocities, orientations, accelerations,
+                       angular_accelerations, fixed, periodic_flag, periodic_length, history,
+                       bound, ops):
+        """Gather and correct grain i (step scale * dt); the largest squared
+        displacement since the last build, speed and acceleration of the row go to
+        bound[row]."""
+        buf = cuda.shared.array((ROW, 3), float64)
         t = cuda.threadIdx.x
+        k, i, ok = row_grain(row_first, row_system, mask)
         buf[t, 0] = 0.0
         buf[t, 1] = 0.0
         buf[t, 2] = 0.0
-        if i < positions.shape[0]:
+        if ok:
             buf[t, 0], buf[t, 1], buf[t, 2] = correct(
-                i, integrator, stage, dt, started, dim, gravity, own, reverse_start,
-                reverse_pairs, pair_force, pair_torque_j, wall_start, wall_force,
-                wall_torque, forces, torques, masses, inertias, positions,
-                reference_positions, velocities, angular_velocities, orientations,
-                accelerations, angular_accelerations, fixed, periodic_flag, periodic_length,
-                history)
+                i, integrator, stage, scale * clock[k, loop.DT], started[k] != 0, dim,
+                clock[k, loop.GX:loop.GZ + 1], own, reverse_start[k:], reverse_pairs,
+                pair_force, pair_torque_j, wall_start[k:], wall_force, wall_torque, forces,
+                torques, masses, inertias, positions, reference_positions, velocities,
+                angular_velocities, orientations, accelerations, angular_accelerations,
+                fixed, periodic_flag[k], periodic_length[k], history)
         block_rows(buf, 3, bound[cuda.blockIdx.x], ops)
 
     @cuda.jit
-    def decide_kernel(clock, offset, reference_offset, velocity, control):
-        """control[0] = 1 when the lists must be rebuilt before this step
-        (core/loop.rebuild_due, one thread)."""
-        if cuda.grid(1) == 0:
-            control[0] = 1 if due(clock, offset, reference_offset, velocity) else 0
+    def decide_kernel(wb, mask, clock, offset, reference_offset, velocity, control):
+        """control[k] = 1 when system k's lists must be rebuilt before this step
+        (core/loop.rebuild_due, thread k)."""
+        k = cuda.grid(1)
+        if k < mask.size:
+            a, b = wb[k], wb[k + 1]
+            control[k] = 1 if mask[k] != 0 and due(
+                clock[k], offset[a:b], reference_offset[a:b], velocity[a:b]) else 0
 
     @cuda.jit
-    def tick_kernel(clock):
-        if cuda.grid(1) == 0:
-            clock[loop.TIME] += clock[loop.DT]
+    def tick_kernel(mask, clock, started):
+        k = cuda.grid(1)
+        if k < mask.size and mask[k] != 0:
+            clock[k, loop.TIME] += clock[k, loop.DT]
+            started[k] = 1
 
     _KERNELS.update(drift=drift_kernel, walls=walls_kernel, force=force_kernel,
                     correct=correct_kernel, decide=decide_kernel, tick=tick_kernel)
     return _KERNELS
 
 
-class DeviceSimulation:
-    """The device side of a Simulation with backend "gpu": ``chunk(nsteps)`` is
-    core/loop.run_chunk on the GPU, with the same return values.  Same integrators, laws
-    and walls as the CPU; results agree with it to floating-point reordering (fused
-    multiply-adds on the device, sums of energies in another association)."""
+class DeviceEnsemble:
+    """The device side of K Simulations (backend "gpu"): ``chunk(nsteps)`` is
+    core/loop.run_chunk for each of them on the GPU, with the same return values per
+    system.  Same integrators, laws and walls as the CPU; results agree with it to
+    floating-point reordering (fused multiply-adds on the device, sums of energies in
+    another association), and system k agrees with the same system alone to the bit."""
 
-    def __init__(self, sim):
-        self.sim = sim
+    def __init__(self, sims):
+        self.sims = list(sims)
         self.k = dict(kernels(), **reduction_kernels())
-        self.lists = None
-
-    def _bundles(self):
-        """The host arrays, in the order the device copies keep them."""
-        s = self.sim
-        return {"grains": list(s._grains()), "pairs": list(s.pairs),
-                "walls": list(s._walls()), "periodic": list(s._periodic()),
-                "loop": [s.clock, s.integrator_history]}
+        self.layout = Layout(self.sims)
+        self.lists = DeviceNeighbours(self.layout)
 
     def _upload(self):
-        self.host = self._bundles()
-        self.dev = {k: [cuda.to_device(a) for a in v] for k, v in self.host.items()}
-        sim, n = self.sim, self.sim.state.n
-        self.lost = cuda.device_array((rows(n), 2))
-        self.model = cuda.to_device(sim.model_ids)
-        self.params = cuda.to_device(sim.params)
-        self.gravity = cuda.to_device(sim.clock[loop.GX:loop.GZ + 1].copy())
-        self.control = cuda.to_device(np.zeros(1, np.int64))
-        self.totals = cuda.device_array((rows(n), 3 * sim.walls.kind.size + 3))
-        self.partial = cuda.device_array((rows(n), 6))
-        self.checked = cuda.device_array(6)
-        self.folded = cuda.device_array(max(6, self.totals.shape[1]))
+        lay, sims = self.layout, self.sims
+        lay.refresh()
+        self.dev = {}
+        for group, arrays in bundles(sims[0]).items():
+            self.dev[group] = [
+                cuda.device_array(*lay.shape(group, q)) if (group, q) in SCRATCH
+                else cuda.to_device(lay.join(group, q)) for q in range(len(arrays))]
+        rows, systems = lay.rows, lay.k
+        walls = int(np.diff(lay.wb).max())
+        self.model = cuda.to_device(sims[0].model_ids)
+        self.params = cuda.to_device(lay.params)
+        self.started = cuda.to_device(np.array(
+            [s.counters[loop.HISTORY_STEPS] > 0 for s in sims], np.int64))
+        self.cutoff = cuda.to_device(np.array(
+            [2.0 * float(s.state.radii.max()) + s.clock[loop.SKIN] for s in sims]))
+        self.control = cuda.device_array(systems, np.int64)
+        self.lost = cuda.device_array((rows, 2))
+        self.totals = cuda.device_array((rows, 3 * walls + 3))
+        self.partial = cuda.device_array((rows, 6))
+        self.checked = cuda.device_array((systems, 6))
+        self.folded = cuda.device_array((systems, max(6, self.totals.shape[1])))
         self.ops = {"totals": ops_array([SUM] * self.totals.shape[1]),
                     "lost": ops_array([SUM] * 2), "bound": ops_array([MAX] * 3),
                     "checks": ops_array(CHECK_OPS)}
-        if self.lists is None or self.lists.n != n:
-            self.lists = DeviceNeighbours(n)
 
     def memory_bytes(self):
         """Bytes of every array this engine keeps on the device (after a chunk or an
-        upload): the simulation's arrays, the neighbour-build scratch and the reduction
-        rows.  The CUDA context and numba's own allocations are not counted."""
+        upload): the simulations' arrays, the neighbour-build scratch, the layout tables
+        and the reduction rows.  The CUDA context and numba's own allocations are not
+        counted."""
         arrays = [a for bundle in self.dev.values() for a in bundle]
-        arrays += [self.lost, self.model, self.params, self.gravity,
-                   self.control, self.totals, self.partial, self.checked, self.folded,
-                   *self.ops.values()]
+        arrays += [self.model, self.params, self.started, self.cutoff, self.control,
+                   self.lost, self.totals, self.partial, self.checked, self.folded,
+                   *self.ops.values(), *self.layout.dev.values()]
         return sum(a.nbytes for a in arrays) + self.lists.memory_bytes()
 
     def _download(self):
-        for k in self.dev:
-            for dev, host in zip(self.dev[k], self.host[k]):
-                dev.copy_to_host(host)
+        for group, arrays in self.dev.items():
+            for q, dev in enumerate(arrays):
+                if (group, q) not in SCRATCH:
+                    self.layout.split(group, q, dev.copy_to_host())
 
-    def _rebuild(self):
-        """Device-side neighbour build (gpu/neighbours.py); the new lists, written in the
-        scratch arrays, are swapped in.  When a list outgrows its arrays, they are grown
-        on the host as the CPU loop does (the old lists kept) and the build runs again.
-        Returns False (nothing rebuilt) when a position is not finite."""
-        sim = self.sim
-        skin = float(sim.clock[loop.SKIN])
-        cutoff = 2.0 * float(sim.state.radii.max()) + skin
+    def _rebuild(self, due):
+        """Device-side neighbour build (gpu/neighbours.py) of the systems with due[k].
+        When a list outgrows its slots, that system's arrays are grown on the host as
+        the CPU loop does (the old lists kept) and the build runs again.  Returns the
+        systems whose positions are not finite (nothing rebuilt)."""
         while True:
-            p, w = self.dev["pairs"], self.dev["walls"]
-            needed, wall_needed, finite = self.lists.build(
-                cutoff, skin, self.dev["grains"], p, w, self.dev["periodic"])
-            if not finite:
-                return False
-            if needed <= p[1].size and wall_needed <= w[11].size:
+            need_p, need_w, bad = self.lists.build(
+                due, self.dev["grains"], self.dev["pairs"], self.dev["walls"],
+                self.dev["periodic"], self.dev["loop"][0], self.cutoff)
+            if bad.any():
+                return bad
+            grow_p = need_p > np.diff(self.layout.pb)
+            grow_w = need_w > np.diff(self.layout.cb)
+            if not (grow_p.any() or grow_w.any()):
                 break
             self._download()
-            if needed > p[1].size:
-                sim._allocate_pairs(int(1.3 * needed) + 64)
-            if wall_needed > w[11].size:
-                sim._allocate_walls(int(1.3 * wall_needed) + 16)
+            for k in np.flatnonzero(grow_p):
+                self.sims[k]._allocate_pairs(int(1.3 * need_p[k]) + 64)
+            for k in np.flatnonzero(grow_w):
+                self.sims[k]._allocate_walls(int(1.3 * need_w[k]) + 16)
+            started = self.started        # the host counters are behind within a chunk
             self._upload()
-        for a, b in ((0, 3), (1, 4), (2, 5)):
-            p[a], p[b] = p[b], p[a]
-            w[10 + a], w[13 + a] = w[13 + a], w[10 + a]
-        sim.counters[loop.REBUILDS] += 1
-        return True
+            self.started = started
+        return bad
 
-    def _launch(self, name, n, *args):
-        """One thread per item; blocks of THREADS threads, or one block of n < THREADS
-        (a few grains, a single-thread reduction)."""
-        threads = max(1, min(THREADS, n))
-        self.k[name][(n + threads - 1) // threads, threads](*args)
+    def _rows(self, name, mask, *args):
+        """Kernel ``name`` with one block per row of the layout, one thread per grain."""
+        lay = self.layout
+        self.k[name][lay.rows, lay.threads](lay.dev["row_first"], lay.dev["row_system"],
+                                            mask, *args)
 
-    def _evaluate(self, share):
+    def _systems(self, name, *args):
+        """Kernel ``name`` with one thread per system."""
+        systems = self.layout.k
+        threads = min(systems, 128)
+        self.k[name][(systems + threads - 1) // threads, threads](*args)
+
+    def _evaluate(self, mask, scale, divisor):
+        """Forces of the masked systems, for a share scale * dt / divisor of the step."""
         g, p, w, per = (self.dev[k] for k in ("grains", "pairs", "walls", "periodic"))
-        n = self.sim.state.n
-        self._launch("force", n, self.model, self.params, g[0], g[1], g[2], g[8],
-                     g[9], g[11], g[12], per[0], per[2], p[0], p[1], p[2], p[8], p[9], p[10],
-                     w[0], w[1], w[5], w[6], w[7], w[10], w[11], w[12], w[16], w[17], g[14],
-                     self.lost, self.ops["lost"], share)
-        self._launch("totals_partial", rows(n), w[10], w[11], w[16], w[6], self.lost,
-                     self.totals)
-        fold(self.k, self.totals, self.ops["totals"], self.folded)
-        self._launch("totals_apply", 1, self.folded, w[8], self.dev["loop"][0], share)
+        clock, lay = self.dev["loop"][0], self.layout
+        self._rows("force", mask, self.model, self.params, g[0], g[1], g[2], g[8], g[9],
+                   g[11], g[12], per[0], per[2], p[0], p[1], p[2], p[8], p[9], p[10], w[0],
+                   w[1], w[5], w[6], w[7], w[10], w[11], w[12], w[16], w[17], g[14],
+                   self.lost, self.ops["lost"], clock, scale, divisor, lay.dev["table"])
+        self.k["totals_partial"][(lay.rows + 127) // 128, 128](
+            lay.dev["row_first"], lay.dev["row_system"], lay.dev["wb"], mask, w[10], w[11],
+            w[16], w[6], self.lost, self.totals)
+        fold(self.k, lay, self.totals, self.ops["totals"], self.folded)
+        self._systems("totals_apply", self.folded, lay.dev["wb"], mask, w[8], clock, scale,
+                      divisor)
 
-    def _correct(self, stage, dt):
-        sim = self.sim
+    def _correct(self, mask, stage, scale):
         g, p, w, per = (self.dev[k] for k in ("grains", "pairs", "walls", "periodic"))
-        integrator = int(sim.counters[loop.INTEGRATOR])
-        self._launch("correct", sim.state.n, integrator, stage, dt,
-                     sim.counters[loop.HISTORY_STEPS] > 0, int(sim.counters[loop.DIM]),
-                     self.gravity, p[9], p[6], p[7], p[8], p[10], w[10], w[16], w[17], g[4], g[5],
-                     g[9], g[10], g[0], g[13], g[1], g[2], g[3], g[6], g[7], g[12], per[0],
-                     per[2], self.dev["loop"][1], self.partial, self.ops["bound"])
-        fold(self.k, self.partial[:, :3], self.ops["bound"], self.folded)
-        self._launch("bound_apply", 1, self.folded, dt, self.dev["loop"][0])
+        clock, lay = self.dev["loop"][0], self.layout
+        integrator = int(self.sims[0].counters[loop.INTEGRATOR])
+        self._rows("correct", mask, integrator, stage, clock, scale, self.started,
+                   int(self.sims[0].counters[loop.DIM]), p[9], p[6], p[7], p[8], p[10],
+                   w[10], w[16], w[17], g[4], g[5], g[9], g[10], g[0], g[13], g[1], g[2], g[3],
+                   g[6], g[7], g[12], per[0], per[2], self.dev["loop"][1], self.partial,
+                   self.ops["bound"])
+        fold(self.k, lay, self.partial[:, :3], self.ops["bound"], self.folded[:, :3])
+        self._systems("bound_apply", self.folded[:, :3], mask, clock, scale)
 
-    def _check(self, reset):
-        """The reductions of core/loop._checks: array indexed by reductions.BAD ...
-        POTENTIAL; max_overlap is set back to zero when ``reset``."""
-        g = self.dev["grains"]
-        n = self.sim.state.n
-        self._launch("checks_partial", rows(n), g[0], g[1], g[2], g[4], g[9], g[10], g[12],
-                     g[14], self.gravity, reset, self.partial)
-        fold(self.k, self.partial[:, :POTENTIAL], self.ops["checks"], self.checked)
-        self._launch("potential_partial", rows(n), g[0], g[9], g[12], self.gravity,
-                     self.checked, self.partial)
-        fold(self.k, self.partial[:, POTENTIAL:], self.ops["checks"][POTENTIAL:],
-             self.checked[POTENTIAL:])
+    def _check(self, mask, reset):
+        """The reductions of core/loop._checks for the masked systems: (K, 6) indexed by
+        reductions.BAD ... POTENTIAL; their max_overlap is set back to zero when
+        ``reset``."""
+        g, lay = self.dev["grains"], self.layout
+        clock = self.dev["loop"][0]
+        blocks = (lay.rows + 127) // 128
+        self.k["checks_partial"][blocks, 128](
+            lay.dev["row_first"], lay.dev["row_system"], mask, g[0], g[1], g[2], g[4], g[9],
+            g[10], g[12], g[14], clock, reset, self.partial)
+        fold(self.k, lay, self.partial[:, :POTENTIAL], self.ops["checks"],
+             self.checked[:, :POTENTIAL])
+        self.k["potential_partial"][blocks, 128](
+            lay.dev["row_first"], lay.dev["row_system"], mask, g[0], g[9], g[12], clock,
+            self.checked, self.partial)
+        fold(self.k, lay, self.partial[:, POTENTIAL:], self.ops["checks"][POTENTIAL:],
+             self.checked[:, POTENTIAL:])
         return self.checked.copy_to_host()
 
-    def _status(self):
-        """core/loop._checks on the device results: a run_chunk status code."""
-        sim = self.sim
-        out = self._check(True)
-        if out[BAD] != 0.0:
-            return loop.NAN
-        if out[OVERLAP] > sim.clock[loop.OVERLAP_LIMIT]:
-            return loop.OVERLAP
-        kind, value = sim.counters[loop.COND_KIND], sim.clock[loop.COND_VALUE]
-        if kind == loop.MAX_SPEED_BELOW and math.sqrt(out[SPEED2]) < value:
-            return loop.CONDITION
-        if kind == loop.ENERGY_RATIO_BELOW and out[KINETIC] <= value * out[POTENTIAL]:
-            return loop.CONDITION
-        return loop.DONE
+    def _statuses(self, mask):
+        """core/loop._checks on the device results: a run_chunk status code for each
+        masked system (DONE for the others)."""
+        out = self._check(cuda.to_device(mask), True)
+        status = np.full(self.layout.k, loop.DONE)
+        for k in np.flatnonzero(mask):
+            clock, counters = self.sims[k].clock, self.sims[k].counters
+            kind, value = counters[loop.COND_KIND], clock[loop.COND_VALUE]
+            if out[k, BAD] != 0.0:
+                status[k] = loop.NAN
+            elif out[k, OVERLAP] > clock[loop.OVERLAP_LIMIT]:
+                status[k] = loop.OVERLAP
+            elif kind == loop.MAX_SPEED_BELOW and math.sqrt(out[k, SPEED2]) < value:
+                status[k] = loop.CONDITION
+            elif kind == loop.ENERGY_RATIO_BELOW and \
+                    out[k, KINETIC] <= value * out[k, POTENTIAL]:
+                status[k] = loop.CONDITION
+        return status
 
     def chunk(self, nsteps):
-        """Up to ``nsteps`` steps on the device: (status, steps done), as run_chunk
-        (GROW never comes back: the lists are grown here)."""
-        sim = self.sim
+        """Up to nsteps[k] steps of each system k on the device: (status (K,), steps done
+        (K,)), as run_chunk for each (GROW never comes back: lists are grown here)."""
         self._upload()
         try:
-            return self._steps(nsteps)
+            return self._steps(np.asarray(nsteps, np.int64))
         finally:
             self._download()
-            sim.state.time = sim.time
-            sim.state.step = sim.step
+            for sim in self.sims:
+                sim.state.time = sim.time
+                sim.state.step = sim.step
 
     def _steps(self, nsteps):
-        sim = self.sim
-        counters = sim.counters
-        dt = float(sim.clock[loop.DT])
-        integrator = int(counters[loop.INTEGRATOR])
-        for s in range(nsteps):
-            w = self.dev["walls"]
-            if counters[loop.FORCE_REBUILD] == 0:
-                self._launch("decide", 1, self.dev["loop"][0], w[5], w[9], w[6], self.control)
-            if counters[loop.FORCE_REBUILD] != 0 or self.control.copy_to_host()[0]:
-                if not self._rebuild():
-                    return loop.NAN, s
-                counters[loop.FORCE_REBUILD] = 0
-            g, w, clock = self.dev["grains"], self.dev["walls"], self.dev["loop"][0]
-            if counters[loop.PRIMED] == 0:
-                self._evaluate(0.0)
-                self._correct(0, 0.0)
-                counters[loop.PRIMED] = 1
-                # grains that start too deep in each other or in a wall: stop before moving
-                if self._check(False)[OVERLAP] > sim.clock[loop.OVERLAP_LIMIT]:
-                    return loop.OVERLAP, s
-            for stage in range(STAGES[integrator]):
-                self._launch("drift", sim.state.n, integrator, stage, dt,
-                             counters[loop.HISTORY_STEPS] > 0, g[0], g[1], g[2], g[3], g[6],
-                             g[7], g[12], self.dev["loop"][1])
-                if stage == 0:
-                    self._launch("walls", 1, w[2], w[3], w[4], w[5], w[6], w[8], clock, dt)
-                self._evaluate(dt / STAGES[integrator])
-                self._correct(stage, dt)
-            self._launch("tick", 1, clock)
-            counters[loop.STEP] += 1
-            counters[loop.HISTORY_STEPS] += 1
-            if counters[loop.STEP] % counters[loop.CHECK_INTERVAL] == 0 or s == nsteps - 1:
-                status = self._status()
-                if status != loop.DONE:
-                    return status, s + 1
-        return loop.DONE, nsteps
+        sims, systems = self.sims, self.layout.k
+        status = np.full(systems, loop.DONE)
+        done = np.zeros(systems, np.int64)
+        active = (nsteps > 0).astype(np.int64)
+        counters = np.stack([s.counters for s in sims])     # host copy, written back
+        integrator = int(counters[0, loop.INTEGRATOR])
+        stages = int(STAGES[integrator])
+
+        def stop(which, code, steps):
+            status[which] = code
+            done[which] = steps
+            active[which] = 0
+
+        s = 0
+        try:
+            while active.any():
+                clock, w = self.dev["loop"][0], self.dev["walls"]
+                forced = active * (counters[:, loop.FORCE_REBUILD] != 0)
+                due = forced.copy()
+                if (active & ~forced.astype(bool)).any():
+                    self._systems("decide", self.layout.dev["wb"],
+                                  cuda.to_device(active - forced), clock, w[5], w[9], w[6],
+                                  self.control)
+                    due |= (active - forced) * self.control.copy_to_host()
+                if due.any():
+                    bad = self._rebuild(due)
+                    if bad.any():
+                        stop(bad != 0, loop.NAN, s)
+                        continue
+                    counters[due != 0, loop.FORCE_REBUILD] = 0
+                    counters[due != 0, loop.REBUILDS] += 1
+                    clock, w = self.dev["loop"][0], self.dev["walls"]    # may be new
+                mask = cuda.to_device(active)
+                prime = active * (counters[:, loop.PRIMED] == 0)
+                if prime.any():
+                    primed = cuda.to_device(prime)
+                    self._evaluate(primed, 0.0, 1.0)
+                    self._correct(primed, 0, 0.0)
+                    counters[prime != 0, loop.PRIMED] = 1
+                    # grains that start too deep in each other or in a wall: stop first
+                    worst = self._check(primed, False)[:, OVERLAP]
+                    limits = np.array([x.clock[loop.OVERLAP_LIMIT] for x in sims])
+                    deep = (prime != 0) & (worst > limits)
+                    if deep.any():
+                        stop(deep, loop.OVERLAP, s)
+                        if not active.any():
+                            break
+                        mask = cuda.to_device(active)
+                for stage in range(stages):
+                    g = self.dev["grains"]
+                    self._rows("drift", mask, integrator, stage, clock, self.started, g[0],
+                               g[1], g[2], g[3], g[6], g[7], g[12], self.dev["loop"][1])
+                    if stage == 0:
+                        self._systems("walls", self.layout.dev["wb"], mask, w[2], w[3], w[4],
+                                      w[5], w[6], w[8], clock)
+                    self._evaluate(mask, 1.0, float(stages))
+                    self._correct(mask, stage, 1.0)
+                self._systems("tick", mask, clock, self.started)
+                counters[active != 0, loop.STEP] += 1
+                counters[active != 0, loop.HISTORY_STEPS] += 1
+                s += 1
+                check = active * ((counters[:, loop.STEP] % counters[:, loop.CHECK_INTERVAL]
+                                   == 0) | (nsteps == s))
+                if check.any():
+                    codes = self._statuses(check)
+                    halted = (check != 0) & (codes != loop.DONE)
+                    for code in np.unique(codes[halted]):
+                        stop(halted & (codes == code), code, s)
+                stop((active != 0) & (nsteps == s), loop.DONE, s)
+        finally:
+            for k, sim in enumerate(sims):
+                sim.counters[...] = counters[k]
+        return status, done

@@ -1,17 +1,22 @@
 """Neighbour lists built on the device (issue 6): the CPU's rebuild (core/neighbors.py)
 as a sequence of kernels, with the CPU's own per-grain functions for the grid, the
-cell of a grain, the pair scan, the wall scan and the history carry-over.
+cell of a grain, the pair scan, the wall scan and the history carry-over, for the
+systems of an ensemble whose lists are due (a mask; gpu/layout.py says where each
+system's grains, lists and walls sit; one system is the case K = 1).
 
-1. wrap periodic coordinates and reduce the bounding box (per-block min/max in
-   shared memory, then one thread builds the grid with ``grid_from_extent``);
+1. wrap periodic coordinates and reduce each system's bounding box (per-row min/max
+   in shared memory, folded per system), then one thread per system builds its grid
+   with ``grid_from_extent``; each system's cells get their own slice of the cell
+   arrays;
 2. counting sort of the grains by cell: atomic counts, prefix sum, atomic placement,
    then each cell sorted by grain index, so the order is that of the CPU's stable sort;
-3. per grain, count its partners j > i and its walls; prefix sums give the CSR starts
-   and the sizes needed, the one number the host reads back;
+3. per grain, count its partners j > i and its walls; one prefix sum over all systems,
+   rebased per system onto its own slots, gives the CSR starts and the sizes needed,
+   the numbers the host reads back;
 4. if they fit: write the lists into the scratch arrays, carry each surviving pair's
-   history over, and build the reverse list (atomic counts, prefix sum, atomic
-   placement, each segment sorted by pair index: the CPU's order again).
-The new lists are in the scratch arrays; the caller swaps them with the current ones.
+   history over, copy the new lists of the due systems into the current arrays, and
+   build their reverse lists (atomic counts, prefix sum, atomic placement, each segment
+   sorted by pair index: the CPU's order again).
 Integer atomics and sorts make every list identical to the CPU's, run after run.
 """
 import math
@@ -21,17 +26,18 @@ from numba import cuda, float64, int64
 
 from ..core.neighbors import (carry_row, cell_id, grid_from_extent, scan_grain, wall_row,
                               wrap_coordinate)
+from ..core import loop
 from .device import device_function
-from .reductions import MAX, MIN, fold, ops_array
+from .layout import ROW, row_grain
+from .reductions import MAX, MIN, block_rows, fold, ops_array
 from .reductions import kernels as reduction_kernels
 
-THREADS = 128          # threads per block; a power of two (tree reductions)
 _KERNELS = {}
 
 
 def launch(kernel, n, *args):
     """Run ``kernel`` with one thread per item for n items."""
-    kernel[max(1, (n + THREADS - 1) // THREADS), THREADS](*args)
+    kernel[max(1, (n + ROW - 1) // ROW), ROW](*args)
 
 
 def kernels():
@@ -45,46 +51,46 @@ def kernels():
     wall_fn = device_function(wall_row)
     wrap_fn = device_function(wrap_coordinate)
 
-    @cuda.jit
-    def extent(positions, flag, lo, length, partial, bad):
-        """Wrap periodic coordinates; per-block min (partial[b, :3]) and max
-        (partial[b, 3:]) of the positions; bad[0] = 1 on a non-finite coordinate."""
-        low = cuda.shared.array((THREADS, 3), float64)
-        high = cuda.shared.array((THREADS, 3), float64)
-        t = cuda.threadIdx.x
-        i = cuda.grid(1)
-        for d in range(3):
-            if i < positions.shape[0]:
-                x = positions[i, d]
-                if flag[d]:
-                    x = wrap_fn(x, lo[d], length[d])
-                    positions[i, d] = x
-                if not math.isfinite(x):
-                    bad[0] = 1
-                low[t, d] = x
-                high[t, d] = x
-            else:
-                low[t, d] = math.inf
-                high[t, d] = -math.inf
-        cuda.syncthreads()
-        s = THREADS // 2
-        while s > 0:
-            if t < s:
-                for d in range(3):
-                    low[t, d] = min(low[t, d], low[t + s, d])
-                    high[t, d] = max(high[t, d], high[t + s, d])
-            cuda.syncthreads()
-            s //= 2
-        if t == 0:
-            for d in range(3):
-                partial[cuda.blockIdx.x, d] = low[0, d]
-                partial[cuda.blockIdx.x, 3 + d] = high[0, d]
+    @cuda.jit(device=True)
+    def insertion_sort(values, first, last):
+        """Sort values[first:last] in place (a few items)."""
+        for a in range(first + 1, last):
+            v = values[a]
+            b = a - 1
+            while b >= first and values[b] > v:
+                values[b + 1] = values[b]
+                b -= 1
+            values[b + 1] = v
 
     @cuda.jit
-    def make_grid(box, n, cutoff, flag, lo, length, origin, size, counts):
-        """The grid over the box (low 3, high 3) of the grains (one thread)."""
-        if cuda.grid(1) == 0:
-            grid_fn(box[:3], box[3:], n, cutoff, flag, lo, length, origin, size, counts)
+    def extent(row_first, row_system, mask, positions, flag, lo, length, partial, bad, ops):
+        """Wrap periodic coordinates; per-row min (partial[r, :3]) and max
+        (partial[r, 3:]) of the positions (ops: MIN x 3, MAX x 3); bad[k] = 1 on a
+        non-finite coordinate."""
+        box = cuda.shared.array((ROW, 6), float64)
+        t = cuda.threadIdx.x
+        k, i, ok = row_grain(row_first, row_system, mask)
+        for d in range(3):
+            box[t, d] = math.inf
+            box[t, 3 + d] = -math.inf
+            if ok:
+                x = positions[i, d]
+                if flag[k, d]:
+                    x = wrap_fn(x, lo[k, d], length[k, d])
+                    positions[i, d] = x
+                if not math.isfinite(x):
+                    bad[k] = 1
+                box[t, d] = x
+                box[t, 3 + d] = x
+        block_rows(box, 6, partial[cuda.blockIdx.x], ops)
+
+    @cuda.jit
+    def make_grid(box, n, cutoff, mask, flag, lo, length, origin, size, counts):
+        """The grid over the box (low 3, high 3) of system k's grains (thread k)."""
+        k = cuda.grid(1)
+        if k < mask.size and mask[k] != 0:
+            grid_fn(box[k, :3], box[k, 3:], n[k], cutoff[k], flag[k], lo[k], length[k],
+                    origin[k], size[k], counts[k])
 
     @cuda.jit
     def zero(a):
@@ -93,102 +99,147 @@ def kernels():
             a[i] = 0
 
     @cuda.jit
-    def bin_grains(positions, origin, size, counts, cell, cell_start):
-        """cell[i] and the count of grains per cell (in cell_start[c + 1])."""
-        i = cuda.grid(1)
-        if i < positions.shape[0]:
-            c = cell_fn(positions[i, 0], positions[i, 1], positions[i, 2], origin, size,
-                        counts)
+    def bin_grains(row_first, row_system, mask, positions, origin, size, counts, cell_base,
+                   cell, cell_start):
+        """cell[i] (in its system's grid) and the count of grains per cell (in
+        cell_start[cell_base[k] + c + 1])."""
+        k, i, ok = row_grain(row_first, row_system, mask)
+        if ok:
+            c = cell_fn(positions[i, 0], positions[i, 1], positions[i, 2], origin[k], size[k],
+                        counts[k])
             cell[i] = c
-            cuda.atomic.add(cell_start, c + 1, 1)
+            cuda.atomic.add(cell_start, cell_base[k] + c + 1, 1)
 
     @cuda.jit
-    def place(cell, cell_start, fill, items):
-        i = cuda.grid(1)
-        if i < cell.size:
-            c = cell[i]
+    def place(row_first, row_system, mask, cell, cell_base, cell_start, fill, items):
+        k, i, ok = row_grain(row_first, row_system, mask)
+        if ok:
+            c = cell_base[k] + cell[i]
             items[cell_start[c] + cuda.atomic.add(fill, c, 1)] = i
 
     @cuda.jit
-    def sort_segments(segment_start, values):
-        """Insertion sort of each segment values[start[c]:start[c + 1]] (a few items)."""
+    def sort_cells(cell_start, values):
+        """Each cell's grains in increasing index."""
         c = cuda.grid(1)
-        if c < segment_start.size - 1:
-            first = segment_start[c]
-            for a in range(first + 1, segment_start[c + 1]):
-                v = values[a]
-                b = a - 1
-                while b >= first and values[b] > v:
-                    values[b + 1] = values[b]
-                    b -= 1
-                values[b + 1] = v
+        if c < cell_start.size - 1:
+            insertion_sort(values, cell_start[c], cell_start[c + 1])
 
     @cuda.jit
-    def count(positions, radii, skin, cell, counts, cell_start, items, flag, length, kind,
-              geometry, offset, start, wall_start):
-        """Partners j > i and walls of each grain, in start[i + 1], wall_start[i + 1]."""
-        i = cuda.grid(1)
-        if i < positions.shape[0]:
-            start[i + 1] = scan_fn(i, positions, radii, skin, cell, counts, cell_start,
-                                   items, flag, length, False, start, 0)
-            wall_start[i + 1] = wall_fn(i, positions, radii, skin, kind, geometry, offset,
-                                        False, wall_start, 0)
-        if i == 0:
-            start[0] = 0
-            wall_start[0] = 0
+    def sort_rows(row_first, row_system, mask, start, values):
+        """values[start[i + k]:start[i + k + 1]] sorted, for each grain i."""
+        k, i, ok = row_grain(row_first, row_system, mask)
+        if ok:
+            insertion_sort(values, start[i + k], start[i + k + 1])
 
     @cuda.jit
-    def fill_lists(positions, radii, skin, cell, counts, cell_start, items, flag, length,
-                   kind, geometry, offset, start, partners, wall_start, wall_ids):
-        i = cuda.grid(1)
-        if i < positions.shape[0]:
-            scan_fn(i, positions, radii, skin, cell, counts, cell_start, items, flag, length,
-                    True, partners, start[i])
-            wall_fn(i, positions, radii, skin, kind, geometry, offset, True, wall_ids,
-                    wall_start[i])
+    def scan_lists(row_first, row_system, mask, gb, clock, positions, radii, cell, counts,
+                   cell_base, cell_start, items, flag, length, kind, geometry, offset, wb,
+                   write, start, partners, wall_start, wall_ids):
+        """Count (write False: into start[i + k + 1], wall_start[i + k + 1]) or write
+        (at start[i + k]...) the partners j > i and the walls of each grain."""
+        k, i, ok = row_grain(row_first, row_system, mask)
+        if not ok:
+            return
+        skin = clock[k, loop.SKIN]
+        first, last = wb[k], wb[k + 1]
+        p = scan_fn(i, positions, radii, skin, cell, counts[k], cell_start[cell_base[k]:],
+                    items, flag[k], length[k], write, partners, start[i + k])
+        w = wall_fn(i, positions, radii, skin, kind[first:last], geometry[first:last],
+                    offset[first:last], write, wall_ids, wall_start[i + k])
+        if write:
+            for q in range(wall_start[i + k], wall_start[i + k + 1]):
+                wall_ids[q] += first
+        else:
+            start[i + k + 1] = p
+            wall_start[i + k + 1] = w
+            if i == gb[k]:
+                start[i + k] = 0
+                wall_start[i + k] = 0
 
     @cuda.jit
-    def carry(start, partners, history, new_start, new_partners, new_history):
-        i = cuda.grid(1)
-        if i < new_start.size - 1:
-            carry_fn(i, start, partners, history, new_start, new_partners, new_history)
+    def segments(gb, n, mask, summed, seg, need):
+        """seg[k]: the inclusive prefix sum at system k's first entry; need[k]: its
+        total (thread k)."""
+        k = cuda.grid(1)
+        if k < mask.size and mask[k] != 0:
+            seg[k] = summed[gb[k] + k]
+            need[k] = summed[gb[k] + k + n[k]] - seg[k]
 
     @cuda.jit
-    def count_reverse(start, partners, reverse_start):
-        i = cuda.grid(1)
-        if i < start.size - 1:
-            for k in range(start[i], start[i + 1]):
-                cuda.atomic.add(reverse_start, partners[k] + 1, 1)
+    def rebase(row_first, row_system, mask, gb, summed, seg, base, out):
+        """out[e] = summed[e] - seg[k] + base[k] for system k's entries: a CSR start
+        array on the system's own slots."""
+        k, i, ok = row_grain(row_first, row_system, mask)
+        if ok:
+            out[i + k + 1] = summed[i + k + 1] - seg[k] + base[k]
+            if i == gb[k]:
+                out[i + k] = base[k]
 
     @cuda.jit
-    def place_reverse(start, partners, reverse_start, fill, reverse_pairs):
-        i = cuda.grid(1)
-        if i < start.size - 1:
-            for k in range(start[i], start[i + 1]):
-                j = partners[k]
-                reverse_pairs[reverse_start[j] + cuda.atomic.add(fill, j, 1)] = k
+    def carry(row_first, row_system, mask, start, partners, history, new_start,
+              new_partners, new_history):
+        k, i, ok = row_grain(row_first, row_system, mask)
+        if ok:
+            carry_fn(i, start[k:], partners, history, new_start[k:], new_partners,
+                     new_history)
 
     @cuda.jit
-    def set_reference(positions, reference_positions, offset, reference_offset):
-        """Positions and wall offsets at this build (the half-skin rule's origin)."""
-        i = cuda.grid(1)
-        if i < positions.shape[0]:
+    def commit(row_first, row_system, mask, gb, new_start, new_items, new_history, start,
+               items, history):
+        """Grain i's new list, starts and histories copied into the current arrays."""
+        k, i, ok = row_grain(row_first, row_system, mask)
+        if ok:
+            if i == gb[k]:
+                start[i + k] = new_start[i + k]
+            start[i + k + 1] = new_start[i + k + 1]
+            for q in range(new_start[i + k], new_start[i + k + 1]):
+                items[q] = new_items[q]
+                for h in range(history.shape[1]):
+                    history[q, h] = new_history[q, h]
+
+    @cuda.jit
+    def count_reverse(row_first, row_system, mask, start, partners, counts):
+        k, i, ok = row_grain(row_first, row_system, mask)
+        if ok:
+            for q in range(start[i + k], start[i + k + 1]):
+                cuda.atomic.add(counts, partners[q] + k + 1, 1)
+
+    @cuda.jit
+    def place_reverse(row_first, row_system, mask, start, partners, reverse_start, fill,
+                      reverse_pairs):
+        k, i, ok = row_grain(row_first, row_system, mask)
+        if ok:
+            for q in range(start[i + k], start[i + k + 1]):
+                j = partners[q]
+                reverse_pairs[reverse_start[j + k] + cuda.atomic.add(fill, j, 1)] = q
+
+    @cuda.jit
+    def set_reference(row_first, row_system, mask, positions, reference_positions):
+        """Positions at this build (the half-skin rule's origin)."""
+        k, i, ok = row_grain(row_first, row_system, mask)
+        if ok:
             for d in range(3):
                 reference_positions[i, d] = positions[i, d]
-        if i < offset.shape[0]:
-            for d in range(3):
-                reference_offset[i, d] = offset[i, d]
+
+    @cuda.jit
+    def set_wall_reference(wb, mask, offset, reference_offset):
+        """Wall offsets of system k at this build (thread k)."""
+        k = cuda.grid(1)
+        if k < mask.size and mask[k] != 0:
+            for w in range(wb[k], wb[k + 1]):
+                for d in range(3):
+                    reference_offset[w, d] = offset[w, d]
 
     @cuda.jit
     def block_scan(a, sums):
         """Inclusive prefix sum of each block of a; the block totals go to sums."""
-        tmp = cuda.shared.array(THREADS, int64)
+        tmp = cuda.shared.array(ROW, int64)
         t = cuda.threadIdx.x
         i = cuda.grid(1)
         tmp[t] = a[i] if i < a.size else 0
         cuda.syncthreads()
         step = 1
-        while step < THREADS:
+        while step < ROW:
             v = tmp[t - step] if t >= step else 0
             cuda.syncthreads()
             tmp[t] += v
@@ -196,7 +247,7 @@ def kernels():
             step *= 2
         if i < a.size:
             a[i] = tmp[t]
-        if t == THREADS - 1:
+        if t == ROW - 1:
             sums[cuda.blockIdx.x] = tmp[t]
 
     @cuda.jit
@@ -211,60 +262,88 @@ def kernels():
 
 
 class DeviceNeighbours:
-    """Scratch arrays and the host side of the device rebuild for N grains."""
+    """Scratch arrays and the host side of the device rebuild for the systems of a
+    layout (gpu/layout.py)."""
 
-    def __init__(self, n):
+    def __init__(self, layout):
         self.k = dict(kernels(), **reduction_kernels())
+        self.layout = layout
+        n, systems = int(layout.gb[-1]), layout.k
         self.n = n
         # grain and cell indices fit in int32 (below 2^31 grains); the cell arrays are
-        # sized to the grid of the first build and grow when a later grid needs more
+        # sized to the grids of the first build and grow when a later build needs more
         self.cell = cuda.device_array(n, np.int32)
         self.items = cuda.device_array(n, np.int32)
         self.cell_start = cuda.device_array(1, np.int32)
         self.fill = cuda.device_array(n, np.int32)
-        self.partial = cuda.device_array(((n + THREADS - 1) // THREADS, 6))
-        self.box = cuda.device_array(6)                          # low (3), high (3)
-        self.grid = [cuda.device_array(3) for _ in range(2)]     # origin, cell size
+        self.partial = cuda.device_array((layout.rows, 6))
+        self.box = cuda.device_array((systems, 6))                 # low (3), high (3)
+        self.grid = [cuda.device_array((systems, 3)) for _ in range(2)]  # origin, size
         self.box_ops = ops_array([MIN] * 3 + [MAX] * 3)
-        self.counts = cuda.device_array(3, np.int64)
-        self.bad = cuda.to_device(np.zeros(1, np.int64))
+        self.counts = cuda.device_array((systems, 3), np.int64)
+        self.bad = cuda.device_array(systems, np.int64)
+        self.seg = cuda.device_array(systems, np.int64)
+        self.need = cuda.device_array((2, systems), np.int64)
+        self.sizes = cuda.to_device(layout.n)
+        self.cell_base = cuda.device_array(systems + 1, np.int64)
         self._sums = []          # one block-total buffer per level of the prefix sum
 
     def memory_bytes(self):
         """Bytes of the scratch arrays of the device build."""
         arrays = [self.cell, self.items, self.cell_start, self.fill, self.partial,
-                  self.counts, self.bad, self.box, *self.grid, self.box_ops, *self._sums]
+                  self.counts, self.bad, self.box, *self.grid, self.box_ops, self.seg,
+                  self.need, self.sizes, self.cell_base, *self._sums]
         return sum(a.nbytes for a in arrays)
 
     def scan(self, a, level=0):
         """In-place inclusive prefix sum of the integer device array a (exact)."""
-        blocks = (a.size + THREADS - 1) // THREADS
+        blocks = (a.size + ROW - 1) // ROW
         if len(self._sums) == level:
             self._sums.append(cuda.device_array(0, np.int64))
         if self._sums[level].size < blocks:
             self._sums[level] = cuda.device_array(blocks, np.int64)
         sums = self._sums[level][:blocks]
-        self.k["block_scan"][blocks, THREADS](a, sums)
+        self.k["block_scan"][blocks, ROW](a, sums)
         if blocks > 1:
             self.scan(sums, level + 1)
-            self.k["add_offsets"][blocks, THREADS](a, sums)
+            self.k["add_offsets"][blocks, ROW](a, sums)
 
-    def _cells(self):
-        """The cell-start table for the grid just built: (ncell + 1,) int32, grown when
-        the grid has more cells than any before (one read of the cell counts)."""
-        ncell = int(np.prod(self.counts.copy_to_host()))
-        if self.cell_start.size < ncell + 1:
-            size = int(1.2 * ncell) + 2
+    def _cells(self, due):
+        """The cell-start table for the grids just built, each due system's cells after
+        the last one's (one read of the cell counts): (total + 1,) int32, grown when the
+        grids need more cells than any before."""
+        cells = np.where(due != 0, np.prod(self.counts.copy_to_host(), axis=1), 0)
+        base = np.concatenate(([0], np.cumsum(cells))).astype(np.int64)
+        self.cell_base.copy_to_device(base)
+        total = int(base[-1])
+        if self.cell_start.size < total + 1:
+            size = int(1.2 * total) + 2
             self.cell_start = cuda.device_array(size, np.int32)
             self.fill = cuda.device_array(max(size, self.n), np.int32)
-        return self.cell_start[:ncell + 1]
+        return self.cell_start[:total + 1]
 
-    def build(self, cutoff, skin, grains, pairs, walls, periodic):
-        """Rebuild into the scratch arrays of ``pairs`` and ``walls`` (device bundles in
-        Simulation order).  Returns (pairs needed, wall contacts needed, finite): when a
-        list does not fit, or a coordinate is not finite, nothing but the wrapped
-        positions has changed."""
-        k, n = self.k, self.n
+    def _rows(self, kernel, mask, *args):
+        """``kernel`` with one block per row of the layout (one thread per grain)."""
+        lay = self.layout
+        kernel[lay.rows, lay.threads](lay.dev["row_first"], lay.dev["row_system"], mask,
+                                      *args)
+
+    def _starts(self, mask, summed, base, out):
+        """out: the CSR starts of the masked systems from the prefix sum ``summed`` of
+        their counts, on the slots from ``base``; returns the totals (device)."""
+        lay = self.layout
+        launch(self.k["segments"], lay.k, lay.dev["gb"], self.sizes, mask, summed, self.seg,
+                                     out[1])
+        self._rows(self.k["rebase"], mask, lay.dev["gb"], summed, self.seg, base, out[0])
+
+    def build(self, due, grains, pairs, walls, periodic, clock, cutoff):
+        """Rebuild the lists of the systems with due[k] != 0 (host array); clock (K, 12)
+        and cutoff (K,) [m] are device arrays.  Returns (pairs needed (K,), wall
+        contacts needed (K,), bad (K,)): when a system's coordinates are not finite
+        (bad) or a list does not fit its slots, nothing but the wrapped positions has
+        changed."""
+        k, lay = self.k, self.layout
+        mask = cuda.to_device(np.asarray(due, np.int64))
         positions, radii = grains[0], grains[8]
         (start, partners, history, new_start, new_partners, new_history, reverse_start,
          reverse_pairs) = pairs[:8]
@@ -273,42 +352,54 @@ class DeviceNeighbours:
             = walls[10:16]
         flag, lo, length = periodic
         origin, size = self.grid
-        self.bad.copy_to_device(np.zeros(1, np.int64))
-        launch(k["extent"], n, positions, flag, lo, length, self.partial, self.bad)
-        fold(self.k, self.partial, self.box_ops, self.box)
-        k["make_grid"][1, 1](self.box, n, cutoff, flag, lo, length, origin, size, self.counts)
-        if self.bad.copy_to_host()[0] != 0:       # no grid over non-finite positions
-            return 0, 0, False
-        cell_start = self._cells()
+        dev = lay.dev
+        launch(k["zero"], lay.k, self.bad)
+        self._rows(k["extent"], mask, positions, flag, lo, length, self.partial, self.bad,
+                   self.box_ops)
+        fold(self.k, lay, self.partial, self.box_ops, self.box)
+        launch(k["make_grid"], lay.k, self.box, self.sizes, cutoff, mask, flag, lo, length,
+                                 origin, size, self.counts)
+        bad = self.bad.copy_to_host() * due
+        if bad.any():                               # no grid over non-finite positions
+            return None, None, bad
+        cell_start = self._cells(due)
         ncell = cell_start.size - 1
         launch(k["zero"], ncell + 1, cell_start)
         launch(k["zero"], ncell, self.fill)
-        launch(k["bin_grains"], n, positions, origin, size, self.counts, self.cell,
-               cell_start)
+        self._rows(k["bin_grains"], mask, positions, origin, size, self.counts,
+                   self.cell_base, self.cell, cell_start)
         self.scan(cell_start)
-        launch(k["place"], n, self.cell, cell_start, self.fill, self.items)
-        launch(k["sort_segments"], ncell, cell_start, self.items)
-        scan_args = (positions, radii, skin, self.cell, self.counts, cell_start,
-                     self.items, flag, length, kind, geometry, offset)
-        launch(k["count"], n, *scan_args, new_start, new_wall_start)
+        self._rows(k["place"], mask, self.cell, self.cell_base, cell_start, self.fill,
+                   self.items)
+        launch(k["sort_cells"], ncell, cell_start, self.items)
+        scan_args = (dev["gb"], clock, positions, radii, self.cell, self.counts,
+                     self.cell_base, cell_start, self.items, flag, length, kind, geometry,
+                     offset, dev["wb"])
+        self._rows(k["scan_lists"], mask, *scan_args, False, new_start, new_partners,
+                   new_wall_start, new_wall_ids)
         self.scan(new_start)
         self.scan(new_wall_start)
-        needed = int(new_start[n:n + 1].copy_to_host()[0])
-        wall_needed = int(new_wall_start[n:n + 1].copy_to_host()[0])
-        if needed > partners.size or wall_needed > wall_ids.size:
-            return needed, wall_needed, True
-        launch(k["fill_lists"], n, *scan_args, new_start, new_partners, new_wall_start,
-               new_wall_ids)
-        launch(k["carry"], n, start, partners, history, new_start, new_partners, new_history)
-        launch(k["carry"], n, wall_start, wall_ids, wall_history, new_wall_start, new_wall_ids,
-               new_wall_history)
-        launch(k["zero"], n + 1, reverse_start)
-        launch(k["zero"], n, self.fill)
-        launch(k["count_reverse"], n, new_start, new_partners, reverse_start)
-        self.scan(reverse_start)
-        launch(k["place_reverse"], n, new_start, new_partners, reverse_start, self.fill,
-               reverse_pairs)
-        launch(k["sort_segments"], n, reverse_start, reverse_pairs)
-        launch(k["set_reference"], max(n, offset.shape[0]), positions, grains[13], offset,
-               walls[9])
-        return needed, wall_needed, True
+        self._starts(mask, new_start, dev["pb"], (new_start, self.need[0]))
+        self._starts(mask, new_wall_start, dev["cb"], (new_wall_start, self.need[1]))
+        need = self.need.copy_to_host() * due
+        capacity = np.diff(lay.pb), np.diff(lay.cb)
+        if np.any(need[0] > capacity[0]) or np.any(need[1] > capacity[1]):
+            return need[0], need[1], bad
+        self._rows(k["scan_lists"], mask, *scan_args, True, new_start, new_partners,
+                   new_wall_start, new_wall_ids)
+        for old, new in ((pairs[:3], pairs[3:6]), (walls[10:13], walls[13:16])):
+            self._rows(k["carry"], mask, *old, *new)
+            self._rows(k["commit"], mask, dev["gb"], *new, *old)
+        # reverse lists: counted into the free scratch starts, then rebased
+        counts = new_start
+        launch(k["zero"], counts.size, counts)
+        launch(k["zero"], self.n, self.fill)
+        self._rows(k["count_reverse"], mask, start, partners, counts)
+        self.scan(counts)
+        self._starts(mask, counts, dev["pb"], (reverse_start, self.need[0]))
+        self._rows(k["place_reverse"], mask, start, partners, reverse_start, self.fill,
+                   reverse_pairs)
+        self._rows(k["sort_rows"], mask, reverse_start, reverse_pairs)
+        self._rows(k["set_reference"], mask, positions, grains[13])
+        launch(k["set_wall_reference"], lay.k, dev["wb"], mask, offset, walls[9])
+        return need[0], need[1], bad

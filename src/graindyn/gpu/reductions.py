@@ -1,15 +1,18 @@
 """Reductions over grains on the device (issue 6): the wall totals and dissipated
 energies of each force evaluation, the half-skin displacement bound, and the checks
-of core/loop._checks (non-finite values, largest overlap, largest speed, energies).
+of core/loop._checks (non-finite values, largest overlap, largest speed, energies),
+for each system of an ensemble (gpu/layout.py; one system is the case K = 1).
 
-Each is three steps: one row per CHUNK consecutive grains (the energy dissipated and
-the displacement bound come as rows straight from the force and correction kernels,
-reduced over each block of CHUNK threads by a tree in shared memory; the others are
+Each is three steps: one row per at most ROW consecutive grains of one system (the
+energy dissipated and the displacement bound come as rows straight from the force and
+correction kernels, reduced over each block by a tree in shared memory; the others are
 reduced by one thread per row, in grain order); ``fold`` reduces each column over the
-rows with one block (thread t takes rows t, t + width, ... in order, then a tree);
-one thread applies the results.  No per-grain scratch array is needed.  The order is fixed, so a run repeats to the last
-bit; maxima and minima equal the CPU's, sums differ from its grain-order sums only by
-association.
+rows of each system with one block per system (thread t takes rows t, t + width, ...
+in order, then a tree; the width depends only on the system's own row count); one
+thread per system applies the results.  No per-grain scratch array is needed.  The
+order is fixed, so a run repeats to the last bit and system k of an ensemble equals
+the same system alone; maxima and minima equal the CPU's, sums differ from its
+grain-order sums only by association.
 """
 import math
 
@@ -18,8 +21,7 @@ from numba import cuda, float64
 
 from ..core import loop
 
-CHUNK = 128            # grains per partial row
-FOLD = 256             # most threads of the folding block (a power of two)
+FOLD = 256             # most threads of a folding block (a power of two)
 SUM, MAX, MIN = 0, 1, 2
 # columns of the check partials, and how each folds
 BAD, SPEED2, OVERLAP, KINETIC, LOW, POTENTIAL = range(6)
@@ -27,22 +29,19 @@ CHECK_OPS = (MAX, MAX, MAX, SUM, MIN, SUM)
 _KERNELS = {}
 
 
-def rows(n):
-    """Partial rows for n grains."""
-    return max(1, (n + CHUNK - 1) // CHUNK)
-
-
 def fold_width(nrows):
-    """Threads of the folding block for nrows rows: a power of two, at most FOLD."""
+    """Threads folding nrows rows: a power of two, at most FOLD."""
     width = 1
     while width < min(nrows, FOLD):
         width *= 2
     return width
 
 
-def fold(kernels, partial, ops, out):
-    """out[q] = SUM, MAX or MIN (device array ops[q]) of partial[:, q] over the rows."""
-    kernels["fold"][1, fold_width(partial.shape[0])](partial, ops, out)
+def fold(kernels, layout, partial, ops, out):
+    """out[k, q] = SUM, MAX or MIN (device array ops[q]) of partial[:, q] over the rows
+    of system k (layout: a gpu.layout.Layout with its device tables)."""
+    kernels["fold"][layout.k, fold_width(layout.max_rows)](partial, layout.dev["rb"], ops,
+                                                             out)
 
 
 def ops_array(ops):
@@ -50,27 +49,65 @@ def ops_array(ops):
     return cuda.to_device(np.asarray(ops, np.int64))
 
 
+@cuda.jit(device=True)
+def block_rows(buf, values, row, ops):
+    """Reduce buf[t, q] over the threads of the block (SUM, MAX or MIN by ops[q], a
+    fixed tree) into row[q]; every thread of the block must call it."""
+    t = cuda.threadIdx.x
+    width = cuda.blockDim.x
+    cuda.syncthreads()
+    step = 1
+    while step < width:
+        step *= 2
+    step //= 2
+    while step > 0:
+        if t < step and t + step < width:
+            for q in range(values):
+                if ops[q] == SUM:
+                    buf[t, q] += buf[t + step, q]
+                elif ops[q] == MAX:
+                    buf[t, q] = max(buf[t, q], buf[t + step, q])
+                else:
+                    buf[t, q] = min(buf[t, q], buf[t + step, q])
+        cuda.syncthreads()
+        step //= 2
+    if t == 0:
+        for q in range(values):
+            row[q] = buf[0, q]
+
+
 def kernels():
     """The reduction kernels (compiled on first use, once per process)."""
     if _KERNELS:
         return _KERNELS
 
+    @cuda.jit(device=True)
+    def width_of(nrows):
+        width = 1
+        while width < min(nrows, FOLD):
+            width *= 2
+        return width
+
     @cuda.jit
-    def fold(partial, ops, out):
-        """out[q] = sum, max or min (ops[q]) of column q over the rows (one block)."""
+    def fold(partial, rb, ops, out):
+        """out[k, q] = sum, max or min (ops[q]) of column q over the rows of system k
+        (block k)."""
         buf = cuda.shared.array(FOLD, float64)
+        k = cuda.blockIdx.x
         t = cuda.threadIdx.x
-        width = cuda.blockDim.x
+        first, last = rb[k], rb[k + 1]
+        width = width_of(last - first)
         for q in range(partial.shape[1]):
             op = ops[q]
             acc = 0.0 if op == SUM else (-math.inf if op == MAX else math.inf)
-            for c in range(t, partial.shape[0], width):
-                if op == SUM:
-                    acc += partial[c, q]
-                elif op == MAX:
-                    acc = max(acc, partial[c, q])
-                else:
-                    acc = min(acc, partial[c, q])
+            if t < width:
+                for c in range(first + t, last, width):
+                    if op == SUM:
+                        acc += partial[c, q]
+                    elif op == MAX:
+                        acc = max(acc, partial[c, q])
+                    else:
+                        acc = min(acc, partial[c, q])
             buf[t] = acc
             cuda.syncthreads()
             step = width // 2
@@ -85,61 +122,76 @@ def kernels():
                 cuda.syncthreads()
                 step //= 2
             if t == 0:
-                out[q] = buf[0]
+                out[k, q] = buf[0]
             cuda.syncthreads()
 
     @cuda.jit
-    def totals_partial(wall_start, wall_ids, contact_force, velocity, lost, partial):
-        """Row c: force of grains c*CHUNK... on each wall (3 W), wall power, and the
-        normal and tangential energy they dissipated (lost[c], from the force kernel)."""
+    def totals_partial(row_first, row_system, wb, mask, wall_start, wall_ids,
+                       contact_force, velocity, lost, partial):
+        """Row c: force of its grains on each wall of their system (3 per wall, local
+        wall order), wall power, and the normal and tangential energy they dissipated
+        (lost[c], from the force kernel)."""
         c = cuda.grid(1)
         if c >= partial.shape[0]:
             return
-        nw = velocity.shape[0]
+        k = row_system[c]
+        if mask[k] == 0:
+            return
+        nw = (partial.shape[1] - 3) // 3
         for q in range(partial.shape[1]):
             partial[c, q] = 0.0
         partial[c, 3 * nw + 1] = lost[c, 0]
         partial[c, 3 * nw + 2] = lost[c, 1]
-        for i in range(c * CHUNK, min(wall_start.size - 1, (c + 1) * CHUNK)):
-            for q in range(wall_start[i], wall_start[i + 1]):
+        for i in range(row_first[c], row_first[c + 1]):
+            for q in range(wall_start[i + k], wall_start[i + k + 1]):
                 w = wall_ids[q]
                 for d in range(3):
-                    partial[c, 3 * w + d] -= contact_force[q, d]
+                    partial[c, 3 * (w - wb[k]) + d] -= contact_force[q, d]
                     partial[c, 3 * nw] += contact_force[q, d] * velocity[w, d]
 
     @cuda.jit
-    def totals_apply(folded, force, clock, share):
-        """Wall forces [N]; dissipated energy [J] and wall work [J] added to the clock."""
-        if cuda.grid(1) != 0:
+    def totals_apply(folded, wb, mask, force, clock, scale, divisor):
+        """Wall forces [N] of system k; its dissipated energy [J] and wall work [J]
+        (power times the step's share, scale * dt / divisor) added to its clock."""
+        k = cuda.grid(1)
+        if k >= mask.size or mask[k] == 0:
             return
-        nw = force.shape[0]
-        for w in range(nw):
+        nw = (folded.shape[1] - 3) // 3
+        for w in range(wb[k + 1] - wb[k]):
             for d in range(3):
-                force[w, d] = folded[3 * w + d]
-        clock[loop.DISS_N] += folded[3 * nw + 1]
-        clock[loop.DISS_T] += folded[3 * nw + 2]
-        clock[loop.WALL_WORK] += folded[3 * nw] * share
+                force[wb[k] + w, d] = folded[k, 3 * w + d]
+        clock[k, loop.DISS_N] += folded[k, 3 * nw + 1]
+        clock[k, loop.DISS_T] += folded[k, 3 * nw + 2]
+        clock[k, loop.WALL_WORK] += folded[k, 3 * nw] * (scale * clock[k, loop.DT] / divisor)
 
     @cuda.jit
-    def bound_apply(folded, dt, clock):
-        """clock[MOVE] = max |r - r_ref| + max |v| dt + max |a| dt^2 / 2."""
-        if cuda.grid(1) == 0:
-            clock[loop.MOVE] = (math.sqrt(folded[0]) + math.sqrt(folded[1]) * dt
-                                + 0.5 * math.sqrt(folded[2]) * dt * dt)
+    def bound_apply(folded, mask, clock, scale):
+        """clock[k, MOVE] = max |r - r_ref| + max |v| dt + max |a| dt^2 / 2, with
+        dt = scale * clock[k, DT]."""
+        k = cuda.grid(1)
+        if k < mask.size and mask[k] != 0:
+            dt = scale * clock[k, loop.DT]
+            clock[k, loop.MOVE] = (math.sqrt(folded[k, 0]) + math.sqrt(folded[k, 1]) * dt
+                                   + 0.5 * math.sqrt(folded[k, 2]) * dt * dt)
 
     @cuda.jit
-    def checks_partial(positions, velocities, angular_velocities, forces, masses, inertias,
-                       fixed, max_overlap, gravity, reset, partial):
+    def checks_partial(row_first, row_system, mask, positions, velocities,
+                       angular_velocities, forces, masses, inertias, fixed, max_overlap,
+                       clock, reset, partial):
         """Row c: any non-finite position, velocity or force; largest squared speed of a
         free grain; largest overlap (reset to 0 when ``reset``); kinetic energy [J]
         and lowest height [m] of the free grains."""
         c = cuda.grid(1)
         if c >= partial.shape[0]:
             return
-        g = math.sqrt(gravity[0] ** 2 + gravity[1] ** 2 + gravity[2] ** 2)
+        k = row_system[c]
+        if mask[k] == 0:
+            return
+        gx, gy, gz = clock[k, loop.GX], clock[k, loop.GY], clock[k, loop.GZ]
+        g = math.sqrt(gx ** 2 + gy ** 2 + gz ** 2)
         bad = speed2 = worst = kinetic = 0.0
         low = math.inf
-        for i in range(c * CHUNK, min(masses.shape[0], (c + 1) * CHUNK)):
+        for i in range(row_first[c], row_first[c + 1]):
             v2 = 0.0
             w2 = 0.0
             for d in range(3):
@@ -155,8 +207,8 @@ def kernels():
                 speed2 = max(speed2, v2)
                 kinetic += 0.5 * masses[i] * v2 + 0.5 * inertias[i] * w2
                 if g > 0.0:
-                    low = min(low, -(positions[i, 0] * gravity[0] + positions[i, 1]
-                                     * gravity[1] + positions[i, 2] * gravity[2]) / g)
+                    low = min(low, -(positions[i, 0] * gx + positions[i, 1] * gy
+                                     + positions[i, 2] * gz) / g)
         partial[c, BAD] = bad
         partial[c, SPEED2] = speed2
         partial[c, OVERLAP] = worst
@@ -164,20 +216,27 @@ def kernels():
         partial[c, LOW] = low
 
     @cuda.jit
-    def potential_partial(positions, masses, fixed, gravity, out, partial):
-        """Row c: potential energy [J] of free grains above the lowest (out[LOW])."""
+    def potential_partial(row_first, row_system, mask, positions, masses, fixed, clock, out,
+                          partial):
+        """Row c: potential energy [J] of free grains above the lowest (out[k, LOW])."""
         c = cuda.grid(1)
         if c >= partial.shape[0]:
             return
-        g = math.sqrt(gravity[0] ** 2 + gravity[1] ** 2 + gravity[2] ** 2)
+        k = row_system[c]
+        if mask[k] == 0:
+            return
+        gx, gy, gz = clock[k, loop.GX], clock[k, loop.GY], clock[k, loop.GZ]
+        g = math.sqrt(gx ** 2 + gy ** 2 + gz ** 2)
         potential = 0.0
         if g > 0.0:
-            for i in range(c * CHUNK, min(masses.shape[0], (c + 1) * CHUNK)):
+            for i in range(row_first[c], row_first[c + 1]):
                 if not fixed[i]:
-                    h = -(positions[i, 0] * gravity[0] + positions[i, 1] * gravity[1]
-                          + positions[i, 2] * gravity[2]) / g
-                    potential += masses[i] * g * (h - out[LOW])
+                    h = -(positions[i, 0] * gx + positions[i, 1] * gy
+                          + positions[i, 2] * gz) / g
+                    potential += masses[i] * g * (h - out[k, LOW])
         partial[c, POTENTIAL] = potential
 
-    _KERNELS.update(locals())
+    _KERNELS.update(fold=fold, totals_partial=totals_partial, totals_apply=totals_apply,
+                    bound_apply=bound_apply, checks_partial=checks_partial,
+                    potential_partial=potential_partial)
     return _KERNELS
