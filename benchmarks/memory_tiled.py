@@ -21,28 +21,37 @@ import sys
 import numpy as np
 
 
-def main(argv):
-    if len(argv) not in (4, 5):
-        sys.exit(__doc__)
-    state_file, size, nx, ny = argv[0], float(argv[1]), int(argv[2]), int(argv[3])
-    device = os.environ.get("GRAINDYN_DEVICE_MEMORY") == "1"
+def tiled(state_file, size, nx, ny, backend="cpu", out=None):
+    """The settled bed of ``state_file`` repeated nx x ny times in one box, with the
+    LAMMPS-benchmark physics (Hertz, Mindlin, Tsuji; dt 2e-6 s): a Simulation."""
     import graindyn as gd
-    from graindyn.analysis.packing import coordination_number
 
     bed = np.loadtxt(state_file, ndmin=2)
     positions = np.vstack([bed[:, :3] + [ix * size, iy * size, 0.0]
                            for ix in range(nx) for iy in range(ny)])
     radii = np.tile(bed[:, 3], nx * ny)
-    if len(argv) == 5:
-        np.savetxt(argv[4], np.column_stack((positions, radii)))
+    if out is not None:
+        np.savetxt(out, np.column_stack((positions, radii)))
     state = gd.State.create(positions, radii, 2650.0)
     grain = gd.Material("bed", density=2650.0, youngs_modulus=1e8, poisson_ratio=0.3,
                         restitution=0.9, friction_sliding=0.5, tangential_damping=1.0)
     walls = gd.box((0.0, 0.0, 0.0), (nx * size, ny * size, 10 * size))
-    sim = gd.Simulation(state, [grain], gd.ContactModel("hertz", "tsuji", "mindlin",
-                                                         limit_damping=False),
-                        walls=walls, dt=2e-6, skin=1e-4, check_interval=1000,
-                        backend="gpu" if device else "cpu")
+    return gd.Simulation(state, [grain], gd.ContactModel("hertz", "tsuji", "mindlin",
+                                                          limit_damping=False),
+                         walls=walls, dt=2e-6, skin=1e-4, check_interval=1000,
+                         backend=backend)
+
+
+def main(argv):
+    if len(argv) not in (4, 5):
+        sys.exit(__doc__)
+    state_file, size, nx, ny = argv[0], float(argv[1]), int(argv[2]), int(argv[3])
+    device = os.environ.get("GRAINDYN_DEVICE_MEMORY") == "1"
+    from graindyn.analysis.packing import coordination_number
+
+    sim = tiled(state_file, size, nx, ny, "gpu" if device else "cpu",
+                argv[4] if len(argv) == 5 else None)
+    state = sim.state
     sim.run(steps=1 if device else 20)
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     print(f"N {state.n} array_bytes_per_grain {sim.memory_bytes() / state.n:.0f} "

@@ -163,6 +163,23 @@ class DeviceEnsemble:
         self.k = dict(kernels(), **reduction_kernels())
         self.layout = Layout(self.sims)
         self.lists = DeviceNeighbours(self.layout)
+        self._masks = {}
+        # benchmarks set count_bytes: the bytes of the arrays handed to the per-grain
+        # kernels, each counted once per launch (an estimate of the memory traffic)
+        self.count_bytes = False
+        self.launched_bytes = 0
+
+    def _mask(self, name, values):
+        """The device copy of the (K,) int mask ``values``: one array per name, written
+        only when the mask changed (no allocation and no copy in most steps)."""
+        values = np.asarray(values, np.int64)
+        held = self._masks.get(name)
+        if held is None:
+            held = self._masks[name] = [values.copy(), cuda.to_device(values)]
+        elif not np.array_equal(held[0], values):
+            held[0][...] = values
+            held[1].copy_to_device(values)
+        return held[1]
 
     def _upload(self):
         lay, sims = self.layout, self.sims
@@ -214,8 +231,8 @@ class DeviceEnsemble:
         systems whose positions are not finite (nothing rebuilt)."""
         while True:
             need_p, need_w, bad = self.lists.build(
-                due, self.dev["grains"], self.dev["pairs"], self.dev["walls"],
-                self.dev["periodic"], self.dev["loop"][0], self.cutoff)
+                due, self._mask("due", due), self.dev["grains"], self.dev["pairs"],
+                self.dev["walls"], self.dev["periodic"], self.dev["loop"][0], self.cutoff)
             if bad.any():
                 return bad
             grow_p = need_p > np.diff(self.layout.pb)
@@ -237,6 +254,8 @@ class DeviceEnsemble:
         lay = self.layout
         self.k[name][lay.rows, lay.threads](lay.dev["row_first"], lay.dev["row_system"],
                                             mask, *args)
+        if self.count_bytes:
+            self.launched_bytes += sum(getattr(a, "nbytes", 0) for a in args)
 
     def _systems(self, name, *args):
         """Kernel ``name`` with one thread per system."""
@@ -293,7 +312,7 @@ class DeviceEnsemble:
     def _statuses(self, mask):
         """core/loop._checks on the device results: a run_chunk status code for each
         masked system (DONE for the others)."""
-        out = self._check(cuda.to_device(mask), True)
+        out = self._check(self._mask("check", mask), True)
         status = np.full(self.layout.k, loop.DONE)
         for k in np.flatnonzero(mask):
             clock, counters = self.sims[k].clock, self.sims[k].counters
@@ -343,8 +362,8 @@ class DeviceEnsemble:
                 due = forced.copy()
                 if (active & ~forced.astype(bool)).any():
                     self._systems("decide", self.layout.dev["wb"],
-                                  cuda.to_device(active - forced), clock, w[5], w[9], w[6],
-                                  self.control)
+                                  self._mask("decide", active - forced), clock, w[5], w[9],
+                                  w[6], self.control)
                     due |= (active - forced) * self.control.copy_to_host()
                 if due.any():
                     bad = self._rebuild(due)
@@ -354,10 +373,10 @@ class DeviceEnsemble:
                     counters[due != 0, loop.FORCE_REBUILD] = 0
                     counters[due != 0, loop.REBUILDS] += 1
                     clock, w = self.dev["loop"][0], self.dev["walls"]    # may be new
-                mask = cuda.to_device(active)
+                mask = self._mask("active", active)
                 prime = active * (counters[:, loop.PRIMED] == 0)
                 if prime.any():
-                    primed = cuda.to_device(prime)
+                    primed = self._mask("prime", prime)
                     self._evaluate(primed, 0.0, 1.0)
                     self._correct(primed, 0, 0.0)
                     counters[prime != 0, loop.PRIMED] = 1
@@ -369,7 +388,7 @@ class DeviceEnsemble:
                         stop(deep, loop.OVERLAP, s)
                         if not active.any():
                             break
-                        mask = cuda.to_device(active)
+                        mask = self._mask("active", active)
                 for stage in range(stages):
                     g = self.dev["grains"]
                     self._rows("drift", mask, integrator, stage, clock, self.started, g[0],

@@ -336,14 +336,13 @@ class DeviceNeighbours:
                                      out[1])
         self._rows(self.k["rebase"], mask, lay.dev["gb"], summed, self.seg, base, out[0])
 
-    def build(self, due, grains, pairs, walls, periodic, clock, cutoff):
-        """Rebuild the lists of the systems with due[k] != 0 (host array); clock (K, 12)
-        and cutoff (K,) [m] are device arrays.  Returns (pairs needed (K,), wall
+    def build(self, due, mask, grains, pairs, walls, periodic, clock, cutoff):
+        """Rebuild the lists of the systems with due[k] != 0 (host array; ``mask`` its
+        device copy); clock (K, 12) and cutoff (K,) [m] are device arrays.  Returns (pairs needed (K,), wall
         contacts needed (K,), bad (K,)): when a system's coordinates are not finite
         (bad) or a list does not fit its slots, nothing but the wrapped positions has
         changed."""
         k, lay = self.k, self.layout
-        mask = cuda.to_device(np.asarray(due, np.int64))
         positions, radii = grains[0], grains[8]
         (start, partners, history, new_start, new_partners, new_history, reverse_start,
          reverse_pairs) = pairs[:8]
