@@ -40,13 +40,17 @@ class Batch:
 
     def chunk(self, sim, nsteps):
         """Called from a job thread by Simulation._chunk: wait for the next round and
-        return its (status, steps done) for ``sim``."""
+        return its (status, steps done) for ``sim``; raises in this job what made the
+        round fail."""
         with self._lock:
             self._requests[sim] = (_LOCAL.index, int(nsteps))
             self._lock.notify_all()
             while sim not in self._results:
                 self._lock.wait()
-            return self._results.pop(sim)
+            result = self._results.pop(sim)
+        if isinstance(result, BaseException):
+            raise result
+        return result
 
     def run(self, jobs, done=None):
         """Run every callable of ``jobs`` in its own thread, their chunks in shared
@@ -90,7 +94,10 @@ class Batch:
                 if self._running == 0:
                     break
                 continue
-            outcome = self._round(requests)
+            try:
+                outcome = self._round(requests)
+            except Exception as err:        # the device failed: each waiting job gets it
+                outcome = dict.fromkeys(requests, err)
             with self._lock:
                 self._results.update(outcome)
                 self._lock.notify_all()
