@@ -67,7 +67,8 @@ def check_time_step(config: Config):
     state = State.create(np.zeros((1, 3)), [0.5 * d], mats[grain].density,
                          dim=config.run.dim, materials=[grain])
     try:
-        report = time_step_report(state, mats, contact_model(config), config.integrator.dt)
+        report = time_step_report(state, mats, contact_model(config), config.integrator.dt,
+                                  config.integrator.name)
     except (ValueError, ZeroDivisionError) as err:
         raise ConfigError(f"cannot work out a time step: {err}") from None
     dt = config.integrator.dt
@@ -75,7 +76,8 @@ def check_time_step(config: Config):
             and not config.integrator.allow_large_dt:
         raise ConfigError(
             f"integrator.dt = {dt:.3g} s is {report['fraction']:.2f} of the "
-            f"{report['criterion']} {report['critical_time_s']:.3g} s of the smallest grain; "
+            f"{report['criterion']} {report['critical_time_s']:.3g} s of the smallest grain"
+            + (f" ({report['limit']})" if "limit" in report else "") + "; "
             f"allowed: dt <= {report['max_fraction'] * report['critical_time_s']:.3g} s "
             f"(suggested {report['suggested_dt_s']:.3g} s), or set "
             "integrator.allow_large_dt = true")

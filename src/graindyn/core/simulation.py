@@ -88,7 +88,7 @@ class Simulation:
             raise ValueError("gravity must be a 3-vector, with zero z component in 2D")
         self.params = self.model.pair_table(self.materials)
         self.model_ids = self.model.ids()
-        self.dt_report = time_step_report(state, self.materials, self.model, dt)
+        self.dt_report = time_step_report(state, self.materials, self.model, dt, integrator)
         if dt is None:
             dt = self.dt_report["suggested_dt_s"]
             self.dt_report.update(dt_s=dt, fraction=dt / self.dt_report["critical_time_s"])
@@ -98,7 +98,8 @@ class Simulation:
             r = self.dt_report
             raise ValueError(
                 f"time step {dt:.3g} s is {r['fraction']:.2f} of the {r['criterion']} "
-                f"{r['critical_time_s']:.3g} s, above the safe fraction {r['max_fraction']}; "
+                f"{r['critical_time_s']:.3g} s, above the safe fraction {r['max_fraction']}"
+                + (f" ({r['limit']})" if "limit" in r else "") + "; "
                 f"use dt <= {r['max_fraction'] * r['critical_time_s']:.3g} s (suggested "
                 f"{r['suggested_dt_s']:.3g} s) or pass allow_large_dt=True")
         if skin is None:
