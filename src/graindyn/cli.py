@@ -172,6 +172,7 @@ def sweep_command(
 ):
     """Run a parameter sweep on Dask: every point (parameter, value, seed) in its own
     run directory, then summary.csv, summary.json and the protocol's tables and figures.
+    Runs with backend gpu (and no --scheduler) run in this process as one GPU ensemble.
 
     Rerunning the same command skips finished points, resumes interrupted ones and
     retries failed ones.  Exit codes: 0 all points finished, 1 some failed (listed),
@@ -187,8 +188,11 @@ def sweep_command(
         target = out or pathlib.Path("runs") / sweep_file.stem
         if dry_run:
             runs = {p.name for p in plan.runs}
+            gpu = {p.name for p in plan.runs if p.config.run.backend == "gpu"}
             typer.echo(f"{sweep_file}: ok, {len(plan.points)} points, {len(runs)} runs "
-                       f"into {target}")
+                       f"into {target}" + (f"; {len(gpu)} with backend gpu would run as one "
+                                           "GPU ensemble" if gpu and scheduler is None
+                                           else ""))
             for p in plan.points:
                 what = "reference" if p.parameter is None else \
                     f"{p.parameter} = {value_text(p.value)}"
