@@ -23,8 +23,10 @@ driver) are left out, so editing them keeps the cache.
 import hashlib
 import os
 import pathlib
+import types
 
 import numba
+from numba.core.dispatcher import Dispatcher
 
 _SOURCE = pathlib.Path(__file__).parent
 ENGINE = ("physics", "core", "_jit.py")
@@ -53,3 +55,31 @@ kernel = numba.njit(cache=True, error_model="numpy")
 block = numba.njit(cache=True, error_model="numpy", _nrt=False)
 parallel = numba.njit(cache=True, error_model="numpy", parallel=True)
 prange = numba.prange
+
+
+def retarget(dispatcher, make, memo, swap=None, suffix=""):
+    """A copy of a graindyn dispatcher compiled by ``make`` from its unchanged
+    ``py_func``: the copy's globals map every dispatcher it names to its own copy
+    (recursively, once each, in ``memo``) and the names in ``swap`` to their
+    replacements; everything else (math, module constants) is shared.  ``suffix`` is
+    added to the qualified names (the disk cache keys on them).  The GPU backend
+    builds its device functions this way (gpu/device.py), the CPU's vectorized law
+    loop its workspace laws (core/law_loop.py)."""
+    twin = memo.get(dispatcher)
+    if twin is not None:
+        return twin
+    swap = swap or {}
+    source = dispatcher.py_func
+    names = dict(source.__globals__)
+    for name in source.__code__.co_names:          # only the globals it reads
+        if name in swap:
+            names[name] = swap[name]
+        elif isinstance(names.get(name), Dispatcher):
+            names[name] = retarget(names[name], make, memo, swap, suffix)
+    clone = types.FunctionType(source.__code__, names, source.__name__, source.__defaults__,
+                               source.__closure__)
+    clone.__kwdefaults__ = source.__kwdefaults__
+    clone.__qualname__ = source.__qualname__ + suffix
+    clone.__module__ = source.__module__
+    twin = memo[dispatcher] = make(clone)
+    return twin

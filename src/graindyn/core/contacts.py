@@ -16,6 +16,8 @@ import numpy as np
 
 from .._jit import block, inlined, parallel, prange, scalar
 from ..physics.contact import contact_force, contact_release
+from .law_loop import (CAP, DVX, DWX, HISTORY, LEVER_I, LEVER_J, M_EFF, MATERIAL_I,
+                       MATERIAL_J, NX, NY, NZ, OUTPUT, OVERLAP, R_EFF, WX, call_law)
 from .neighbors import min_image
 from .walls import wall_distance
 
@@ -62,12 +64,53 @@ def _release(model, params, a, b, r_eff, history, force, torque, k):
 
 
 @scalar
+def pair_geometry(i, j, xi, yi, zi, r_i, m_i, positions, radii, masses, fixed, px, py, pz,
+                  lx, ly, lz):
+    """Pair (i, j) with i's position, radius and mass given: (touching, overlap [m],
+    overlap / smaller radius, lever_i, lever_j [m], R* [m], m* [kg], unit normal n (3)
+    from j to i)."""
+    dx = min_image(xi - positions[j, 0], px, lx)
+    dy = min_image(yi - positions[j, 1], py, ly)
+    dz = min_image(zi - positions[j, 2], pz, lz)
+    r_j = radii[j]
+    rsum = r_i + r_j
+    d2 = dx * dx + dy * dy + dz * dz
+    if d2 >= rsum * rsum:
+        return False, 0.0, 0.0, 0.0, 0.0, r_i * r_j / rsum, 0.0, 0.0, 0.0, 0.0
+    dist = math.sqrt(d2)
+    inv = 1.0 / dist
+    overlap = rsum - dist
+    if fixed[j]:
+        m_eff = m_i
+    elif fixed[i]:
+        m_eff = masses[j]
+    else:
+        m_eff = m_i * masses[j] / (m_i + masses[j])
+    inv_sum = 1.0 / rsum
+    share = overlap * inv_sum
+    return (True, overlap, overlap / min(r_i, r_j), r_i - share * r_j, r_j - share * r_i,
+            r_i * r_j * inv_sum, m_eff, dx * inv, dy * inv, dz * inv)
+
+
+@scalar
+def _opened(model, params, a, b, r_eff, history, pair_force, pair_torque_j, k):
+    """Pair k not touching: the energy [J] its history springs held, if it had opened
+    only now (_release), else 0."""
+    dirty = pair_force[k, 0] != 0.0 or pair_force[k, 1] != 0.0 or pair_force[k, 2] != 0.0
+    for h in range(history.shape[1]):
+        dirty = dirty or history[k, h] != 0.0
+    if dirty:
+        return _release(model, params, a, b, r_eff, history, pair_force, pair_torque_j, k)
+    return 0.0
+
+
+@scalar
 def pair_row(i, model, params, positions, velocities, angular_velocities, radii, masses,
              materials, fixed, periodic_flag, periodic_length, start, partners, history,
              pair_force, own, pair_torque_j, max_overlap, dt):
-    """The pairs listed by grain i (the loop body of ``pair_forces``, shared with the
-    GPU kernels): writes their forces, own[i] and max_overlap[i]; returns the normal
-    and tangential energy dissipated [J]."""
+    """The pairs listed by grain i, one contact after the other (the GPU's pair kernel;
+    the CPU batches them, _pair_block): writes their forces, own[i] and max_overlap[i];
+    returns the normal and tangential energy dissipated [J]."""
     dissipated_n = 0.0
     dissipated_t = 0.0
     px, py, pz = periodic_flag[0], periodic_flag[1], periodic_flag[2]
@@ -89,39 +132,17 @@ def pair_row(i, model, params, positions, velocities, angular_velocities, radii,
     fx = fy = fz = tx = ty = tz = 0.0
     for k in range(start[i], start[i + 1]):
         j = partners[k]
-        dx = min_image(xi - positions[j, 0], px, lx)
-        dy = min_image(yi - positions[j, 1], py, ly)
-        dz = min_image(zi - positions[j, 2], pz, lz)
-        r_j = radii[j]
-        rsum = r_i + r_j
-        d2 = dx * dx + dy * dy + dz * dz
-        if d2 >= rsum * rsum:
-            dirty = pair_force[k, 0] != 0.0 or pair_force[k, 1] != 0.0 \
-                or pair_force[k, 2] != 0.0
-            for h in range(history.shape[1]):
-                dirty = dirty or history[k, h] != 0.0
-            if dirty:
-                dissipated_t += _release(model, params, a, materials[j], r_i * r_j / rsum,
-                                         history, pair_force, pair_torque_j, k)
+        touching, overlap, ratio, lever_i, lever_j, r_eff, m_eff, nx, ny, nz = pair_geometry(
+            i, j, xi, yi, zi, r_i, m_i, positions, radii, masses, fixed, px, py, pz, lx, ly,
+            lz)
+        if not touching:
+            dissipated_t += _opened(model, params, a, materials[j], r_eff, history,
+                                    pair_force, pair_torque_j, k)
             continue
-        dist = math.sqrt(d2)
-        inv = 1.0 / dist
-        overlap = rsum - dist
-        worst = max(worst, overlap / min(r_i, r_j))
-        if fixed[j]:
-            m_eff = m_i
-        elif fixed[i]:
-            m_eff = masses[j]
-        else:
-            m_eff = m_i * masses[j] / (m_i + masses[j])
-        inv_sum = 1.0 / rsum
-        share = overlap * inv_sum
-        lever_i = r_i - share * r_j
-        lever_j = r_j - share * r_i
+        worst = max(worst, ratio)
         out = contact_response(
-            model, params, a, materials[j], overlap, lever_i, lever_j, r_i * r_j * inv_sum,
-            m_eff, dx * inv, dy * inv, dz * inv, vxi - velocities[j, 0],
-            vyi - velocities[j, 1], vzi - velocities[j, 2],
+            model, params, a, materials[j], overlap, lever_i, lever_j, r_eff, m_eff, nx, ny,
+            nz, vxi - velocities[j, 0], vyi - velocities[j, 1], vzi - velocities[j, 2],
             lever_i * wxi + lever_j * angular_velocities[j, 0],
             lever_i * wyi + lever_j * angular_velocities[j, 1],
             lever_i * wzi + lever_j * angular_velocities[j, 2],
@@ -148,29 +169,107 @@ def pair_row(i, model, params, positions, velocities, angular_velocities, radii,
     return dissipated_n, dissipated_t
 
 
+@scalar
+def _flush(law, work, count, slots, params, history, pair_force, own, pair_torque_j, dt):
+    """Evaluate the law on the ``count`` contacts gathered in ``work`` (law_loop.py) and
+    scatter them back in gathering order: forces, histories, and the sums over each
+    grain's own pairs; returns the normal and tangential energy dissipated [J]."""
+    call_law(law, work, count, params, dt)
+    lost_n = 0.0
+    lost_t = 0.0
+    for s in range(count):
+        k = slots[0, s]
+        i = slots[1, s]
+        for d in range(3):
+            f = work[(OUTPUT + d) * CAP + s]
+            pair_force[k, d] = f
+            pair_torque_j[k, d] = work[(OUTPUT + 6 + d) * CAP + s]
+            own[i, d] += f
+            own[i, 3 + d] += work[(OUTPUT + 3 + d) * CAP + s]
+        for h in range(history.shape[1]):
+            history[k, h] = work[(HISTORY + h) * CAP + s]
+        lost_n += work[(OUTPUT + 9) * CAP + s]
+        lost_t += work[(OUTPUT + 10) * CAP + s]
+    return lost_n, lost_t
+
+
 @block
-def _pair_block(lo, hi, model, params, positions, velocities, angular_velocities, radii,
-                masses, materials, fixed, periodic_flag, periodic_length, start, partners,
-                history, pair_force, own, pair_torque_j, max_overlap, dt):
-    """pair_row for grains lo..hi-1, compiled once as a serial function (inlined into a
-    parallel loop it would be compiled several times over); returns the energies."""
+def _pair_block(lo, hi, law, work, slots, model, params, positions, velocities,
+                angular_velocities, radii, masses, materials, fixed, periodic_flag,
+                periodic_length, start, partners, history, pair_force, own, pair_torque_j,
+                max_overlap, dt):
+    """The pairs listed by grains lo..hi-1, compiled once as a serial function: the
+    touching ones gathered CAP at a time into ``work`` and evaluated by the law loop
+    (law_loop.py); returns the energies.  Same forces as pair_row, to the bit."""
     dissipated_n = 0.0
     dissipated_t = 0.0
+    px, py, pz = periodic_flag[0], periodic_flag[1], periodic_flag[2]
+    lx, ly, lz = periodic_length[0], periodic_length[1], periodic_length[2]
+    count = 0
     for i in range(lo, hi):
-        dn, dt_ = pair_row(i, model, params, positions, velocities, angular_velocities, radii,
-                           masses, materials, fixed, periodic_flag, periodic_length, start,
-                           partners, history, pair_force, own, pair_torque_j, max_overlap, dt)
+        xi = positions[i, 0]
+        yi = positions[i, 1]
+        zi = positions[i, 2]
+        r_i = radii[i]
+        m_i = masses[i]
+        a = materials[i]
+        worst = max_overlap[i]
+        for d in range(6):
+            own[i, d] = 0.0
+        for k in range(start[i], start[i + 1]):
+            j = partners[k]
+            touching, overlap, ratio, lever_i, lever_j, r_eff, m_eff, nx, ny, nz = \
+                pair_geometry(i, j, xi, yi, zi, r_i, m_i, positions, radii, masses, fixed,
+                              px, py, pz, lx, ly, lz)
+            if not touching:
+                dissipated_t += _opened(model, params, a, materials[j], r_eff, history,
+                                        pair_force, pair_torque_j, k)
+                continue
+            worst = max(worst, ratio)
+            c = count
+            work[OVERLAP * CAP + c] = overlap
+            work[LEVER_I * CAP + c] = lever_i
+            work[LEVER_J * CAP + c] = lever_j
+            work[R_EFF * CAP + c] = r_eff
+            work[M_EFF * CAP + c] = m_eff
+            work[NX * CAP + c] = nx
+            work[NY * CAP + c] = ny
+            work[NZ * CAP + c] = nz
+            for d in range(3):
+                work[(DVX + d) * CAP + c] = velocities[i, d] - velocities[j, d]
+                work[(WX + d) * CAP + c] = lever_i * angular_velocities[i, d] \
+                    + lever_j * angular_velocities[j, d]
+                work[(DWX + d) * CAP + c] = angular_velocities[i, d] - angular_velocities[j, d]
+            work[MATERIAL_I * CAP + c] = a
+            work[MATERIAL_J * CAP + c] = materials[j]
+            for h in range(history.shape[1]):
+                work[(HISTORY + h) * CAP + c] = history[k, h]
+            slots[0, c] = k
+            slots[1, c] = i
+            count += 1
+            if count == CAP:
+                dn, dt_ = _flush(law, work, count, slots, params, history, pair_force, own,
+                                 pair_torque_j, dt)
+                dissipated_n += dn
+                dissipated_t += dt_
+                count = 0
+        max_overlap[i] = worst
+    if count > 0:
+        dn, dt_ = _flush(law, work, count, slots, params, history, pair_force, own,
+                         pair_torque_j, dt)
         dissipated_n += dn
         dissipated_t += dt_
     return dissipated_n, dissipated_t
 
 
 @parallel
-def pair_forces(model, params, positions, velocities, angular_velocities, radii, masses,
+def pair_forces(model, params, law, positions, velocities, angular_velocities, radii, masses,
                 materials, fixed, periodic_flag, periodic_length, start, partners, history,
                 pair_force, own, pair_torque_j, max_overlap, dt, nblock):
     """Forces of every listed pair; zero (and history reset) for pairs not touching.
 
+    law : (address of the law loop (law_loop.law_address), workspaces (nblock, ...),
+    slots (nblock, 2, CAP)).
     pair_force[k] [N] is the force on the first grain i of pair k and pair_torque_j[k]
     [N m] the torque on its second grain; own[i] (6) is the sum of the forces and
     torques on i of the pairs it lists, in list order.
@@ -180,12 +279,14 @@ def pair_forces(model, params, positions, velocities, angular_velocities, radii,
     ``nblock`` fixed blocks of grains (block_count) in block order.
     """
     n = positions.shape[0]
+    address, work, slots = law
     sums = np.zeros((nblock, 2))
     for b in prange(nblock):
         sums[b, 0], sums[b, 1] = _pair_block(
-            b * n // nblock, (b + 1) * n // nblock, model, params, positions, velocities,
-            angular_velocities, radii, masses, materials, fixed, periodic_flag, periodic_length,
-            start, partners, history, pair_force, own, pair_torque_j, max_overlap, dt)
+            b * n // nblock, (b + 1) * n // nblock, address, work[b], slots[b], model, params,
+            positions, velocities, angular_velocities, radii, masses, materials, fixed,
+            periodic_flag, periodic_length, start, partners, history, pair_force, own,
+            pair_torque_j, max_overlap, dt)
     return _block_total(sums)
 
 

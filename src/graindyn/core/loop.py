@@ -47,9 +47,10 @@ def new_clock(dt, skin, gravity):
 
 
 @kernel
-def evaluate_forces(model, params, grains, pairs, walls, periodic, gravity, dt, nblock):
+def evaluate_forces(model, params, law, grains, pairs, walls, periodic, gravity, dt, nblock):
     """All contact forces and the total force on each wall; returns the (normal,
     tangential) energy dissipated [J] and the power of the walls on the grains [W].
+    law: the batched law of the pair contacts (contacts.pair_forces);
     nblock: blocks of grains handed to threads (contacts.block_count)."""
     (positions, velocities, angular_velocities, orientations, forces, torques, accelerations,
      angular_accelerations, radii, masses, inertias, materials, fixed, reference_positions,
@@ -60,7 +61,7 @@ def evaluate_forces(model, params, grains, pairs, walls, periodic, gravity, dt, 
      reference_offset, wall_start, wall_ids, wall_history, scratch_wall_start,
      scratch_wall_ids, scratch_wall_history, contact_force, contact_torque) = walls
     flag, lo, length = periodic
-    dn, dt_ = pair_forces(model, params, positions, velocities, angular_velocities, radii,
+    dn, dt_ = pair_forces(model, params, law, positions, velocities, angular_velocities, radii,
                           masses, materials, fixed, flag, length, start, partners, history,
                           pair_force, own, pair_torque_j, max_overlap, dt, nblock)
     wn, wt = wall_forces(model, params, positions, velocities, angular_velocities, radii,
@@ -184,7 +185,7 @@ def _after(integrator, stage, dt, counters, gravity, grains, pairs, walls, perio
 
 
 @kernel
-def run_chunk(model, params, grains, pairs, walls, periodic, clock, counters,
+def run_chunk(model, params, law, grains, pairs, walls, periodic, clock, counters,
               integrator_history, block_scratch, nsteps):
     """Advance up to ``nsteps`` steps; returns (status, steps done).
     integrator_history : (slots, N, 3) the integrator's own per-grain history
@@ -222,7 +223,7 @@ def run_chunk(model, params, grains, pairs, walls, periodic, clock, counters,
             counters[FORCE_REBUILD] = 0
             counters[REBUILDS] += 1
         if counters[PRIMED] == 0:
-            evaluate_forces(model, params, grains, pairs, walls, periodic, gravity, 0.0,
+            evaluate_forces(model, params, law, grains, pairs, walls, periodic, gravity, 0.0,
                             block_scratch.size)
             # stage as a plain int64: a literal 0 would compile the pass a second time
             clock[MOVE] = _after(integrator, np.int64(0), 0.0, counters, gravity, grains,
@@ -242,8 +243,8 @@ def run_chunk(model, params, grains, pairs, walls, periodic, clock, counters,
             # velocity Verlet kicks h/2 twice): contact-history increments, dissipation
             # and wall work advance by that share, not by the whole step
             share = dt / STAGES[integrator]
-            dn, dtan, power = evaluate_forces(model, params, grains, pairs, walls, periodic,
-                                              gravity, share, block_scratch.size)
+            dn, dtan, power = evaluate_forces(model, params, law, grains, pairs, walls,
+                                              periodic, gravity, share, block_scratch.size)
             clock[DISS_N] += dn
             clock[DISS_T] += dtan
             clock[WALL_WORK] += power * share

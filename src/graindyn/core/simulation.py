@@ -13,6 +13,7 @@ import numpy as np
 from . import loop
 from .contacts import block_count
 from .integrators import SCHEMES, SLOTS, history_names, integrator_id
+from .law_loop import law_address, workspace as law_workspace
 from .species import ContactModel, Material
 from .timestep import time_step_report
 from .triggers import Periodic
@@ -74,6 +75,7 @@ class Simulation:
                 raise ValueError(f"backend 'gpu': {reason}")
         self.backend = backend
         self._device = None
+        self._law = None            # the CPU's batched law (core/law_loop.py), when used
         self.state = state
         self.materials = list(materials) if materials else [Material()]
         self.model = model or ContactModel()
@@ -263,12 +265,14 @@ class Simulation:
             status, done = self._device.chunk([nsteps])
             return int(status[0]), int(done[0])
         blocks = block_count(self.state.n, numba.get_num_threads())
-        if self.block_scratch.size != blocks:      # the thread count changed
+        if self.block_scratch.size != blocks or self._law is None:  # first, or new threads
             self.block_scratch = np.zeros(blocks)
+            self._law = (law_address(self.model_ids),
+                         *law_workspace(blocks, self.history_size))
         while True:
-            status, done = loop.run_chunk(self.model_ids, self.params, self._grains(), self.pairs,
-                                          self._walls(), self._periodic(), self.clock,
-                                          self.counters, self.integrator_history,
+            status, done = loop.run_chunk(self.model_ids, self.params, self._law, self._grains(),
+                                          self.pairs, self._walls(), self._periodic(),
+                                          self.clock, self.counters, self.integrator_history,
                                           self.block_scratch, nsteps)
             self.state.time = self.time
             self.state.step = self.step
@@ -431,9 +435,11 @@ class Simulation:
 
     # ------------------------------------------------------------------ contacts
     def memory_bytes(self):
-        """Bytes held by the grain, pair and wall-contact arrays of this simulation."""
+        """Bytes held by the grain, pair and wall-contact arrays of this simulation (and
+        the law loop's workspaces once it has run on the CPU)."""
         arrays = list(self.state.arrays().values()) + list(self.pairs) \
-            + list(self.wall_contacts) + [self.reference_positions, self.max_overlap]
+            + list(self.wall_contacts) + [self.reference_positions, self.max_overlap] \
+            + (list(self._law[1:]) if self._law is not None else [])
         return int(sum(a.nbytes for a in arrays))
 
     def contacts(self):

@@ -10,6 +10,7 @@ import math
 from .._jit import scalar
 from .damping import (damping_karrech_coefficient, damping_linear_coefficient,
                       damping_tsuji_coefficient, damping_viscoelastic_coefficient)
+from .history import hrow
 from .normal import (normal_hertz_energy, normal_hertz_stiffness, normal_hooke_energy,
                      normal_walton_braun_energy, normal_walton_braun_force,
                      normal_walton_braun_silo_force)
@@ -85,7 +86,8 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
     n : unit normal from j to i;  vn = v_rel.n [m/s] (negative when approaching)
     v_t : tangential relative velocity of i at the contact point [m/s] (Oquendo Eq. 4)
     w : relative angular velocity w_i - w_j [rad/s]
-    history[k] : this contact's history values, updated in place;  dt [s]
+    history[hrow(k, c)] : this contact's history values (physics/history.py), updated
+    in place;  dt [s]
     (Whole arrays and indices are passed rather than row views: a view costs two
     atomic reference-count updates per contact in numba.)
     Returns (f_n >= 0 [N], f_t (3) [N], couple M (3) [N m] on i (-M on j), normal
@@ -150,7 +152,7 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
             params[a, b, _KT], params[a, b, _XT] * c, params[a, b, _MU], cap, 0, nx, ny, nz,
             vtx, vty, vtz, history, k, ht, dt)
     elif tangential == _MINDLIN or tangential == _KARRECH or tangential == _OQUENDO:
-        fresh = history[k, ht + 3] == 0.0      # no contact radius stored yet: first touch
+        fresh = history[hrow(k, ht + 3)] == 0.0      # no contact radius stored yet: first touch
         kt, lost_t = tangential_mindlin_rescale(params[a, b, _G], radius, history, k, ht)
         if tangential == _MINDLIN:
             ftx, fty, ftz, dissipated_t = tangential_spring_force(
@@ -210,13 +212,13 @@ def _spring_energy(model, params, a, b, r_eff, history, k):
     if tangential == _CUNDALL:
         energy += tangential_spring_energy(params[a, b, _KT], history, k, ht)
     elif tangential == _MINDLIN or tangential == _KARRECH or tangential == _OQUENDO:
-        kt = tangential_mindlin_stiffness(params[a, b, _G], history[k, ht + 3])
+        kt = tangential_mindlin_stiffness(params[a, b, _G], history[hrow(k, ht + 3)])
         energy += tangential_spring_energy(kt, history, k, ht)
     if model[3] == _ROLL_EPSD:
         energy += tangential_spring_energy(params[a, b, _K_ROLL] * r_eff * r_eff, history, k,
                                            model[_H_ROLLING])
     if model[4] == _TWIST_EPSD:
-        theta = history[k, model[_H_TWISTING]]
+        theta = history[hrow(k, model[_H_TWISTING])]
         energy += 0.5 * params[a, b, _K_TW] * theta * theta
     return energy
 

@@ -11,6 +11,7 @@ overlap xi = R_i + R_j - |r_i - r_j| [m] (Perez Eq. 13), r_eff = R_i R_j/(R_i+R_
 import math
 
 from .._jit import scalar
+from .history import hrow
 
 
 @scalar
@@ -36,7 +37,7 @@ def normal_walton_braun_force(overlap, kn, restitution, history, k, h):
     """Walton & Braun (1986) loading/unloading springs, plastic form (Perez Sec. 3.1,
     Fig. 2a): f = min(k1 xi, k2 (xi - xi0)), f >= 0, with k1 = kn on loading and the
     stiffer k2 = kn/e^2 on unloading; xi0 = xi_max (1 - e^2) is where the force
-    vanishes, xi_max the largest overlap of the contact (history[k, h]).
+    vanishes, xi_max the largest overlap of the contact (history[hrow(k, h)]).
 
     Energy returned / energy loaded = k1/k2 = e^2, so the restitution is the input e
     whatever the speed.  Reloading after a partial unloading follows the k2 line up to
@@ -45,9 +46,9 @@ def normal_walton_braun_force(overlap, kn, restitution, history, k, h):
     ``normal_walton_braun_energy`` the bookkeeping is exact.
     """
     e2 = restitution * restitution
-    old = history[k, h]
+    old = history[hrow(k, h)]
     peak = max(old, overlap)
-    history[k, h] = peak
+    history[hrow(k, h)] = peak
     f = min(kn * overlap, kn / e2 * (overlap - peak * (1.0 - e2)))
     return max(f, 0.0), 0.5 * kn * (1.0 - e2) * (peak * peak - old * old)
 
@@ -57,7 +58,7 @@ def normal_walton_braun_energy(overlap, kn, restitution, history, k, h):
     """Energy [J] the plastic Walton-Braun spring gives back on unloading from the
     present state: k2 (xi - xi0)^2/2 with k2 = kn/e^2, xi0 = xi_max (1 - e^2)."""
     e2 = restitution * restitution
-    x = overlap - history[k, h] * (1.0 - e2)
+    x = overlap - history[hrow(k, h)] * (1.0 - e2)
     return 0.5 * kn / e2 * x * x if x > 0.0 else 0.0
 
 
@@ -67,15 +68,15 @@ def normal_walton_braun_silo_force(overlap, kn, restitution, history, k, h):
     f = kn xi while the overlap grows, f = e^2 kn xi while it shrinks (the
     paper's "reduced by a restitution factor eps^2", eps^2 = 0.9 there), so the
     restitution is e.  Loading and unloading are told apart by comparing the overlap
-    with its value at the previous evaluation (history[k, h]).
+    with its value at the previous evaluation (history[hrow(k, h)]).
 
     Returns (f [N], energy dissipated in the step [J]): the stored energy is taken as
     what unloading would give back, e^2 kn xi^2/2, so loading by d(xi^2/2) costs
     (1 - e^2) kn d(xi^2/2) and unloading costs nothing.
     """
     e2 = restitution * restitution
-    old = history[k, h]
-    history[k, h] = overlap
+    old = history[hrow(k, h)]
+    history[hrow(k, h)] = overlap
     if overlap >= old:
         return kn * overlap, 0.5 * (1.0 - e2) * kn * (overlap * overlap - old * old)
     return e2 * kn * overlap, 0.0

@@ -1,12 +1,13 @@
 """Tangential (friction) laws.  Forces [N] act on grain i; v_t [m/s] is the tangential
 velocity of i relative to j at the contact point; each returns the force and the
 energy [J] dissipated during the step dt [s].  History values of a contact sit in
-history[k, h:h + n], h the tangential offset of the model (registry.history_layout).
+history[hrow(k, h:h + n)], h the tangential offset of the model (registry.history_layout).
 The same functions serve disks: in 2D v_t and the spring stay in the plane.
 """
 import math
 
 from .._jit import scalar
+from .history import hrow
 
 
 @scalar
@@ -24,7 +25,7 @@ def tangential_spring_force(kt, eta_t, mu, fn, cap, nx, ny, nz, vtx, vty, vtz,
                             history, k, h, dt):
     """Capped tangential spring with dashpot: Cundall-Strack (Perez Eq. 20-23) in 3D.
 
-    history[k, h:h+3] holds the spring elongation zeta [m].  Each step zeta is first
+    history[hrow(k, h:h+3)] holds the spring elongation zeta [m].  Each step zeta is first
     rotated into the current tangent plane keeping its length, then grows by v_t dt
     (Eq. 20).  ``cap`` says what mu f_n limits:
     0: the trial force f = -kt zeta - eta_t v_t (Eq. 22); when capped zeta is reset so
@@ -38,9 +39,9 @@ def tangential_spring_force(kt, eta_t, mu, fn, cap, nx, ny, nz, vtx, vty, vtz,
     kt [N/m], eta_t [kg/s].  Returns f_t (3) and the energy dissipated in the step,
     the work -f_t.v_t dt not stored in the spring.
     """
-    zx = history[k, h]
-    zy = history[k, h + 1]
-    zz = history[k, h + 2]
+    zx = history[hrow(k, h)]
+    zy = history[hrow(k, h + 1)]
+    zz = history[hrow(k, h + 2)]
     old = zx * zx + zy * zy + zz * zz
     if old > 0.0:
         zn = zx * nx + zy * ny + zz * nz
@@ -82,9 +83,9 @@ def tangential_spring_force(kt, eta_t, mu, fn, cap, nx, ny, nz, vtx, vty, vtz,
         fx -= eta_t * vtx
         fy -= eta_t * vty
         fz -= eta_t * vtz
-    history[k, h] = zx
-    history[k, h + 1] = zy
-    history[k, h + 2] = zz
+    history[hrow(k, h)] = zx
+    history[hrow(k, h + 1)] = zy
+    history[hrow(k, h + 2)] = zz
     energy_after = 0.5 * kt * (zx * zx + zy * zy + zz * zz)
     work = -(fx * vtx + fy * vty + fz * vtz) * dt
     return fx, fy, fz, work - (energy_after - energy_before)
@@ -98,8 +99,8 @@ def tangential_mindlin_stiffness(shear_eff, contact_radius):
 
 @scalar
 def tangential_spring_energy(kt, history, k, h):
-    """Energy kt |zeta|^2/2 [J] stored in the tangential spring history[k, h:h+3]."""
-    return 0.5 * kt * (history[k, h] ** 2 + history[k, h + 1] ** 2 + history[k, h + 2] ** 2)
+    """Energy kt |zeta|^2/2 [J] stored in the tangential spring history[hrow(k, h:h+3)]."""
+    return 0.5 * kt * (history[hrow(k, h)] ** 2 + history[hrow(k, h + 1)] ** 2 + history[hrow(k, h + 2)] ** 2)
 
 
 @scalar
@@ -108,7 +109,7 @@ def tangential_mindlin_rescale(shear_eff, contact_radius, history, k, h):
     "when F_n decreases by dF_n, the tangential force at F_n - dF_n is assigned to
     F_t"), before the step's increment.
 
-    history[k, h:h+3] is the elongation zeta, history[k, h+3] the contact radius a of
+    history[hrow(k, h:h+3)] is the elongation zeta, history[hrow(k, h+3)] the contact radius a of
     the previous evaluation.  The stiffness kt = 8 G* a follows a.  When a grows
     (loading) zeta shrinks by a_old/a so the force kt zeta is kept: new stiffness acts
     only on new increments (dF_t = kt d(delta_t)).  When a shrinks (unloading) zeta is
@@ -116,20 +117,25 @@ def tangential_mindlin_rescale(shear_eff, contact_radius, history, k, h):
     normal force.  The stored energy kt |zeta|^2/2 never grows by either move.
     Returns (kt [N/m] and the energy [J] the move released, counted as dissipated).
     """
-    a_old = history[k, h + 3]
-    history[k, h + 3] = contact_radius
+    a_old = history[hrow(k, h + 3)]
+    zx = history[hrow(k, h)]
+    zy = history[hrow(k, h + 1)]
+    zz = history[hrow(k, h + 2)]
     kt = tangential_mindlin_stiffness(shear_eff, contact_radius)
-    z2 = history[k, h] ** 2 + history[k, h + 1] ** 2 + history[k, h + 2] ** 2
-    if a_old <= 0.0 or z2 == 0.0:
-        return kt, 0.0
-    if contact_radius > a_old:
-        s = a_old / contact_radius
-        history[k, h] *= s
-        history[k, h + 1] *= s
-        history[k, h + 2] *= s
-        # kt_old |zeta|^2/2 - kt s^2 |zeta|^2/2 = 4 G* a_old |zeta|^2 (1 - s)
-        return kt, 4.0 * shear_eff * a_old * z2 * (1.0 - s)
-    return kt, 4.0 * shear_eff * (a_old - contact_radius) * z2
+    z2 = zx * zx + zy * zy + zz * zz
+    # without branches (selects, every store made), so that the CPU's law loop can
+    # evaluate contacts in SIMD lanes (core/law_loop.py); the values are those of the
+    # branching form: s = 1 leaves zeta as it is
+    grow = (contact_radius > a_old) & (a_old > 0.0)
+    s = a_old / contact_radius if grow else 1.0
+    history[hrow(k, h)] = zx * s
+    history[hrow(k, h + 1)] = zy * s
+    history[hrow(k, h + 2)] = zz * s
+    history[hrow(k, h + 3)] = contact_radius
+    # kt_old |zeta|^2/2 - kt s^2 |zeta|^2/2 = 4 G* a_old |zeta|^2 (1 - s) when a grows
+    lost = 4.0 * shear_eff * a_old * z2 * (1.0 - s) if grow else \
+        4.0 * shear_eff * (a_old - contact_radius) * z2
+    return kt, lost if a_old > 0.0 else 0.0
 
 
 @scalar
@@ -140,12 +146,12 @@ def tangential_oquendo_force(kt, eta_t, mu_k, mu_s, threshold, fresh, fn, nx, ny
 
     Sliding: f = -mu_k |f_n| v_t/|v_t| (Eq. 5).  A new contact (``fresh``) slides when
     |v_t| > threshold; a sliding one keeps sliding while |v_t| > threshold and v_t
-    has not turned back against its previous direction (history[k, h+4:h+7] holds
+    has not turned back against its previous direction (history[hrow(k, h+4:h+7)] holds
     the previous slip velocity while sliding, zero otherwise: in one step the slip
     may jump across the threshold band).  Otherwise the grains stick or roll and
     static friction holds the contact point (Eq. 10).  Reading of Eq. 10: the force
     "-F^t" that cancels the tangential pull is found, as in Cundall & Strack, by a
-    stiff spring kt (history[k, h:h+3]) with dashpot eta_t that grows from zero with
+    stiff spring kt (history[hrow(k, h:h+3)]) with dashpot eta_t that grows from zero with
     the contact-point displacement, and holds while spring + dashpot stay below
     mu_s |f_n|.  When they would exceed it the contact starts to slide: the sliding
     force applies from that step on and the spring is emptied (its energy counts as
@@ -153,9 +159,9 @@ def tangential_oquendo_force(kt, eta_t, mu_k, mu_s, threshold, fresh, fn, nx, ny
     contact point moves faster than the threshold while the spring catches it.
     Returns f_t (3), the energy dissipated [J], and 1.0 when sliding (else 0.0).
     """
-    px = history[k, h + 4]
-    py = history[k, h + 5]
-    pz = history[k, h + 6]
+    px = history[hrow(k, h + 4)]
+    py = history[hrow(k, h + 5)]
+    pz = history[hrow(k, h + 6)]
     speed = math.sqrt(vtx * vtx + vty * vty + vtz * vtz)
     sliding = speed > threshold and (fresh or px * vtx + py * vty + pz * vtz > 0.0)
     lost = tangential_spring_energy(kt, history, k, h)
@@ -166,15 +172,15 @@ def tangential_oquendo_force(kt, eta_t, mu_k, mu_s, threshold, fresh, fn, nx, ny
         sliding = speed > 0.0 and fn > 0.0 and \
             fx * fx + fy * fy + fz * fz >= (1.0 - 1e-12) * (mu_s * fn) ** 2
         if not sliding:
-            history[k, h + 4] = 0.0
-            history[k, h + 5] = 0.0
-            history[k, h + 6] = 0.0
+            history[hrow(k, h + 4)] = 0.0
+            history[hrow(k, h + 5)] = 0.0
+            history[hrow(k, h + 6)] = 0.0
             return fx, fy, fz, spent, 0.0
-    history[k, h] = 0.0
-    history[k, h + 1] = 0.0
-    history[k, h + 2] = 0.0
-    history[k, h + 4] = vtx
-    history[k, h + 5] = vty
-    history[k, h + 6] = vtz
+    history[hrow(k, h)] = 0.0
+    history[hrow(k, h + 1)] = 0.0
+    history[hrow(k, h + 2)] = 0.0
+    history[hrow(k, h + 4)] = vtx
+    history[hrow(k, h + 5)] = vty
+    history[hrow(k, h + 6)] = vtz
     fx, fy, fz, work = tangential_coulomb_force(mu_k, fn, vtx, vty, vtz, dt)
     return fx, fy, fz, work + lost, 1.0

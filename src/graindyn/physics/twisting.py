@@ -13,6 +13,7 @@ w_n = 0: disks do not twist.
     (the angle [rad]).
 """
 from .._jit import scalar
+from .history import hrow
 
 
 @scalar
@@ -34,11 +35,11 @@ def twisting_constant_torque(limit, wn, dt):
 @scalar
 def twisting_spring_torque(k_tw, c_tw, limit, wn, history, k, h, dt):
     """Elastic-plastic twisting spring-dashpot (the 1D form of the EPSD rolling law,
-    Ai et al. 2011): theta (history[k, h]) grows by w_n dt; the spring torque
+    Ai et al. 2011): theta (history[hrow(k, h)]) grows by w_n dt; the spring torque
     -k_tw theta is capped at |M| <= limit, theta then reset to match; the dashpot
     -c_tw w_n acts only below the cap.  Returns M [N m] and the energy dissipated
     [J], the work -M w_n dt not stored in the spring k_tw theta^2/2 (never < 0)."""
-    theta = history[k, h]
+    theta = history[hrow(k, h)]
     before = 0.5 * k_tw * theta * theta
     theta += wn * dt
     m = -k_tw * theta
@@ -47,5 +48,5 @@ def twisting_spring_torque(k_tw, c_tw, limit, wn, history, k, h, dt):
         theta = -m / k_tw
     else:
         m -= c_tw * wn
-    history[k, h] = theta
+    history[hrow(k, h)] = theta
     return m, -m * wn * dt - (0.5 * k_tw * theta * theta - before)
