@@ -16,8 +16,8 @@ import numpy as np
 
 from .._jit import block, inlined, parallel, prange, scalar
 from ..physics.contact import contact_force, contact_release
-from .law_loop import (CAP, DVX, DWX, HISTORY, LEVER_I, LEVER_J, M_EFF, MATERIAL_I,
-                       MATERIAL_J, NX, NY, NZ, OUTPUT, OVERLAP, R_EFF, WX, call_law)
+from .law_loop import (CAP, DVX, DWX, HISTORY, LEVER_I, LEVER_J, M_EFF, NX, NY, NZ, OUTPUT,
+                       OVERLAP, PARAMS, R_EFF, WX, call_law)
 from .neighbors import min_image
 from .walls import wall_distance
 
@@ -170,11 +170,11 @@ def pair_row(i, model, params, positions, velocities, angular_velocities, radii,
 
 
 @scalar
-def _flush(law, work, count, slots, params, history, pair_force, own, pair_torque_j, dt):
+def _flush(law, work, count, slots, history, pair_force, own, pair_torque_j, dt):
     """Evaluate the law on the ``count`` contacts gathered in ``work`` (law_loop.py) and
     scatter them back in gathering order: forces, histories, and the sums over each
     grain's own pairs; returns the normal and tangential energy dissipated [J]."""
-    call_law(law, work, count, params, dt)
+    call_law(law, work, count, dt)
     lost_n = 0.0
     lost_t = 0.0
     for s in range(count):
@@ -240,23 +240,25 @@ def _pair_block(lo, hi, law, work, slots, model, params, positions, velocities,
                 work[(WX + d) * CAP + c] = lever_i * angular_velocities[i, d] \
                     + lever_j * angular_velocities[j, d]
                 work[(DWX + d) * CAP + c] = angular_velocities[i, d] - angular_velocities[j, d]
-            work[MATERIAL_I * CAP + c] = a
-            work[MATERIAL_J * CAP + c] = materials[j]
+            if params.shape[0] > 1:            # one material: rows filled once (law_loop)
+                b = materials[j]
+                for col in range(params.shape[2]):
+                    work[(PARAMS + col) * CAP + c] = params[a, b, col]
             for h in range(history.shape[1]):
                 work[(HISTORY + h) * CAP + c] = history[k, h]
             slots[0, c] = k
             slots[1, c] = i
             count += 1
             if count == CAP:
-                dn, dt_ = _flush(law, work, count, slots, params, history, pair_force, own,
+                dn, dt_ = _flush(law, work, count, slots, history, pair_force, own,
                                  pair_torque_j, dt)
                 dissipated_n += dn
                 dissipated_t += dt_
                 count = 0
         max_overlap[i] = worst
     if count > 0:
-        dn, dt_ = _flush(law, work, count, slots, params, history, pair_force, own,
-                         pair_torque_j, dt)
+        dn, dt_ = _flush(law, work, count, slots, history, pair_force, own, pair_torque_j,
+                         dt)
         dissipated_n += dn
         dissipated_t += dt_
     return dissipated_n, dissipated_t

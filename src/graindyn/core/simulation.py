@@ -13,7 +13,7 @@ import numpy as np
 from . import loop
 from .contacts import block_count
 from .integrators import SCHEMES, SLOTS, history_names, integrator_id
-from .law_loop import law_address, workspace as law_workspace
+from .law_loop import fill_params, law_address, workspace as law_workspace
 from .species import ContactModel, Material
 from .timestep import time_step_report
 from .triggers import Periodic
@@ -268,7 +268,8 @@ class Simulation:
         if self.block_scratch.size != blocks or self._law is None:  # first, or new threads
             self.block_scratch = np.zeros(blocks)
             self._law = (law_address(self.model_ids),
-                         *law_workspace(blocks, self.history_size))
+                         *law_workspace(blocks, self.history_size, self.params))
+        fill_params(self._law[1], self.params)
         while True:
             status, done = loop.run_chunk(self.model_ids, self.params, self._law, self._grains(),
                                           self.pairs, self._walls(), self._periodic(),

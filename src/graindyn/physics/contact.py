@@ -10,7 +10,7 @@ import math
 from .._jit import scalar
 from .damping import (damping_karrech_coefficient, damping_linear_coefficient,
                       damping_tsuji_coefficient, damping_viscoelastic_coefficient)
-from .history import hrow
+from .indexing import hrow, prow
 from .normal import (normal_hertz_energy, normal_hertz_stiffness, normal_hooke_energy,
                      normal_walton_braun_energy, normal_walton_braun_force,
                      normal_walton_braun_silo_force)
@@ -80,13 +80,14 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
         limit_damping flag (1 keeps the normal force repulsive, Perez Eq. 14, 17; 0
         lets the dashpot pull at the end of a contact, the LAMMPS default), and the
         five history offsets
-    params[a, b] : (NCOL,) parameters of the material pair (a, b);  overlap [m];
+    params[prow(a, b, col)] : the parameters of the material pair (a, b)
+    (physics/indexing.py);  overlap [m];
     r_eff = R* [m];  r_roll = R'_ij [m], the reduced corrected radius of Oquendo
     Eq. 7;  m_eff [kg]
     n : unit normal from j to i;  vn = v_rel.n [m/s] (negative when approaching)
     v_t : tangential relative velocity of i at the contact point [m/s] (Oquendo Eq. 4)
     w : relative angular velocity w_i - w_j [rad/s]
-    history[hrow(k, c)] : this contact's history values (physics/history.py), updated
+    history[hrow(k, c)] : this contact's history values (physics/indexing.py), updated
     in place;  dt [s]
     (Whole arrays and indices are passed rather than row views: a view costs two
     atomic reference-count updates per contact in numba.)
@@ -98,33 +99,33 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
     normal = model[0]
     lost_n = 0.0
     if normal == _HOOKE:
-        stiffness = params[a, b, _KN]
+        stiffness = params[prow(a, b, _KN)]
         tangent = stiffness
         f_el = stiffness * overlap  # Perez Eq. 14
     elif normal == _HERTZ:
-        stiffness = normal_hertz_stiffness(radius, params[a, b, _E])
+        stiffness = normal_hertz_stiffness(radius, params[prow(a, b, _E)])
         tangent = 1.5 * stiffness
         f_el = stiffness * overlap  # Perez Eq. 17, Oquendo Eq. 1, Karrech Eq. 5
     elif normal == _WALTON_BRAUN:
-        stiffness = params[a, b, _KN]
+        stiffness = params[prow(a, b, _KN)]
         tangent = stiffness
-        f_el, lost_n = normal_walton_braun_force(overlap, stiffness, params[a, b, _EN],
+        f_el, lost_n = normal_walton_braun_force(overlap, stiffness, params[prow(a, b, _EN)],
                                                  history, k, model[_H_NORMAL])
     else:
-        stiffness = params[a, b, _KN]
+        stiffness = params[prow(a, b, _KN)]
         tangent = stiffness
-        f_el, lost_n = normal_walton_braun_silo_force(overlap, stiffness, params[a, b, _EN],
+        f_el, lost_n = normal_walton_braun_silo_force(overlap, stiffness, params[prow(a, b, _EN)],
                                                       history, k, model[_H_NORMAL])
     damping = model[1]
     if damping == _LINEAR:
-        c = damping_linear_coefficient(m_eff, params[a, b, _KN], params[a, b, _BETA],
-                                       params[a, b, _GAMMA0])
+        c = damping_linear_coefficient(m_eff, params[prow(a, b, _KN)], params[prow(a, b, _BETA)],
+                                       params[prow(a, b, _GAMMA0)])
     elif damping == _VISCOELASTIC:
-        c = damping_viscoelastic_coefficient(m_eff, overlap, params[a, b, _GAMMA_N])
+        c = damping_viscoelastic_coefficient(m_eff, overlap, params[prow(a, b, _GAMMA_N)])
     elif damping == _TSUJI:
-        c = damping_tsuji_coefficient(m_eff, stiffness, params[a, b, _ALPHA])
+        c = damping_tsuji_coefficient(m_eff, stiffness, params[prow(a, b, _ALPHA)])
     elif damping == _KARRECH_DAMPING:
-        c = damping_karrech_coefficient(m_eff, tangent, params[a, b, _ALPHA_N])
+        c = damping_karrech_coefficient(m_eff, tangent, params[prow(a, b, _ALPHA_N)])
     else:
         c = 0.0
     rate = -vn
@@ -145,32 +146,32 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
         wry = wy - wn * ny
         wrz = wz - wn * nz
     if tangential == _COULOMB:
-        ftx, fty, ftz, dissipated_t = tangential_coulomb_force(params[a, b, _MU], cap, vtx, vty,
+        ftx, fty, ftz, dissipated_t = tangential_coulomb_force(params[prow(a, b, _MU)], cap, vtx, vty,
                                                                vtz, dt)
     elif tangential == _CUNDALL:
         ftx, fty, ftz, dissipated_t = tangential_spring_force(
-            params[a, b, _KT], params[a, b, _XT] * c, params[a, b, _MU], cap, 0, nx, ny, nz,
+            params[prow(a, b, _KT)], params[prow(a, b, _XT)] * c, params[prow(a, b, _MU)], cap, 0, nx, ny, nz,
             vtx, vty, vtz, history, k, ht, dt)
     elif tangential == _MINDLIN or tangential == _KARRECH or tangential == _OQUENDO:
         fresh = history[hrow(k, ht + 3)] == 0.0      # no contact radius stored yet: first touch
-        kt, lost_t = tangential_mindlin_rescale(params[a, b, _G], radius, history, k, ht)
+        kt, lost_t = tangential_mindlin_rescale(params[prow(a, b, _G)], radius, history, k, ht)
         if tangential == _MINDLIN:
             ftx, fty, ftz, dissipated_t = tangential_spring_force(
-                kt, params[a, b, _XT] * c, params[a, b, _MU], cap, 0, nx, ny, nz, vtx, vty,
+                kt, params[prow(a, b, _XT)] * c, params[prow(a, b, _MU)], cap, 0, nx, ny, nz, vtx, vty,
                 vtz, history, k, ht, dt)
         elif tangential == _KARRECH:
             ftx, fty, ftz, dissipated_t = tangential_spring_force(
-                kt, damping_karrech_coefficient(m_eff, kt, params[a, b, _ALPHA_T]),
-                params[a, b, _MU], cap, 1, nx, ny, nz, vtx, vty, vtz, history, k, ht, dt)
+                kt, damping_karrech_coefficient(m_eff, kt, params[prow(a, b, _ALPHA_T)]),
+                params[prow(a, b, _MU)], cap, 1, nx, ny, nz, vtx, vty, vtz, history, k, ht, dt)
         else:
-            threshold = params[a, b, _SLIP]
+            threshold = params[prow(a, b, _SLIP)]
             ftx, fty, ftz, dissipated_t, sliding = tangential_oquendo_force(
-                kt, params[a, b, _XT] * c, params[a, b, _MU], params[a, b, _MU_S], threshold,
+                kt, params[prow(a, b, _XT)] * c, params[prow(a, b, _MU)], params[prow(a, b, _MU_S)], threshold,
                 fresh, cap, nx, ny, nz, vtx, vty, vtz, history, k, ht, dt)
             # rolling (Oquendo Eq. 7-9): not sliding and R'_ij |w_r| above the threshold
             if sliding == 0.0 and r_roll * math.sqrt(wrx * wrx + wry * wry + wrz * wrz) \
                     > threshold:
-                mx, my, mz, lost_r = rolling_constant_torque(params[a, b, _MU_R] * r_roll * cap,
+                mx, my, mz, lost_r = rolling_constant_torque(params[prow(a, b, _MU_R)] * r_roll * cap,
                                                              wrx, wry, wrz, dt)
                 dissipated_t += lost_r
         dissipated_t += lost_t
@@ -178,24 +179,24 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
         ftx = fty = ftz = dissipated_t = 0.0
     rolling = model[3]
     if rolling == _ROLL_CONSTANT:
-        rx, ry, rz, lost_r = rolling_constant_torque(params[a, b, _MU_R] * r_eff * cap, wrx,
+        rx, ry, rz, lost_r = rolling_constant_torque(params[prow(a, b, _MU_R)] * r_eff * cap, wrx,
                                                      wry, wrz, dt)
     elif rolling == _ROLL_EPSD:
         r2 = r_eff * r_eff
         rx, ry, rz, lost_r = tangential_spring_force(
-            params[a, b, _K_ROLL] * r2, params[a, b, _C_ROLL] * r2, params[a, b, _MU_R] * r_eff,
+            params[prow(a, b, _K_ROLL)] * r2, params[prow(a, b, _C_ROLL)] * r2, params[prow(a, b, _MU_R)] * r_eff,
             cap, 2, nx, ny, nz, wrx, wry, wrz, history, k, model[_H_ROLLING], dt)
     else:
         rx = ry = rz = lost_r = 0.0
     twisting = model[4]
     if twisting == _TWIST_OQUENDO:
-        tw, lost_w = twisting_oquendo_torque(params[a, b, _GAMMA_NT], m_eff, r_eff, overlap, wn,
+        tw, lost_w = twisting_oquendo_torque(params[prow(a, b, _GAMMA_NT)], m_eff, r_eff, overlap, wn,
                                              dt)
     elif twisting == _TWIST_CONSTANT:
-        tw, lost_w = twisting_constant_torque(params[a, b, _MU_TW] * radius * cap, wn, dt)
+        tw, lost_w = twisting_constant_torque(params[prow(a, b, _MU_TW)] * radius * cap, wn, dt)
     elif twisting == _TWIST_EPSD:
-        tw, lost_w = twisting_spring_torque(params[a, b, _K_TW], params[a, b, _C_TW],
-                                            params[a, b, _MU_TW] * radius * cap, wn, history, k,
+        tw, lost_w = twisting_spring_torque(params[prow(a, b, _K_TW)], params[prow(a, b, _C_TW)],
+                                            params[prow(a, b, _MU_TW)] * radius * cap, wn, history, k,
                                             model[_H_TWISTING], dt)
     else:
         tw = lost_w = 0.0
@@ -210,16 +211,16 @@ def _spring_energy(model, params, a, b, r_eff, history, k):
     tangential = model[2]
     ht = model[_H_TANGENTIAL]
     if tangential == _CUNDALL:
-        energy += tangential_spring_energy(params[a, b, _KT], history, k, ht)
+        energy += tangential_spring_energy(params[prow(a, b, _KT)], history, k, ht)
     elif tangential == _MINDLIN or tangential == _KARRECH or tangential == _OQUENDO:
-        kt = tangential_mindlin_stiffness(params[a, b, _G], history[hrow(k, ht + 3)])
+        kt = tangential_mindlin_stiffness(params[prow(a, b, _G)], history[hrow(k, ht + 3)])
         energy += tangential_spring_energy(kt, history, k, ht)
     if model[3] == _ROLL_EPSD:
-        energy += tangential_spring_energy(params[a, b, _K_ROLL] * r_eff * r_eff, history, k,
+        energy += tangential_spring_energy(params[prow(a, b, _K_ROLL)] * r_eff * r_eff, history, k,
                                            model[_H_ROLLING])
     if model[4] == _TWIST_EPSD:
         theta = history[hrow(k, model[_H_TWISTING])]
-        energy += 0.5 * params[a, b, _K_TW] * theta * theta
+        energy += 0.5 * params[prow(a, b, _K_TW)] * theta * theta
     return energy
 
 
@@ -232,14 +233,14 @@ def contact_energy(model, params, a, b, overlap, r_eff, history, k):
         return 0.0
     normal = model[0]
     if normal == _HOOKE:
-        energy = normal_hooke_energy(overlap, params[a, b, _KN])
+        energy = normal_hooke_energy(overlap, params[prow(a, b, _KN)])
     elif normal == _HERTZ:
-        energy = normal_hertz_energy(overlap, r_eff, params[a, b, _E])
+        energy = normal_hertz_energy(overlap, r_eff, params[prow(a, b, _E)])
     elif normal == _WALTON_BRAUN:
-        energy = normal_walton_braun_energy(overlap, params[a, b, _KN], params[a, b, _EN],
+        energy = normal_walton_braun_energy(overlap, params[prow(a, b, _KN)], params[prow(a, b, _EN)],
                                             history, k, model[_H_NORMAL])
     else:
-        energy = normal_hooke_energy(overlap, params[a, b, _EN] ** 2 * params[a, b, _KN])
+        energy = normal_hooke_energy(overlap, params[prow(a, b, _EN)] ** 2 * params[prow(a, b, _KN)])
     return energy + _spring_energy(model, params, a, b, r_eff, history, k)
 
 

@@ -11,7 +11,7 @@ overlap xi = R_i + R_j - |r_i - r_j| [m] (Perez Eq. 13), r_eff = R_i R_j/(R_i+R_
 import math
 
 from .._jit import scalar
-from .history import hrow
+from .indexing import hrow
 
 
 @scalar

@@ -7,7 +7,7 @@ The same functions serve disks: in 2D v_t and the spring stay in the plane.
 import math
 
 from .._jit import scalar
-from .history import hrow
+from .indexing import hrow
 
 
 @scalar

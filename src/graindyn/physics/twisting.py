@@ -13,7 +13,7 @@ w_n = 0: disks do not twist.
     (the angle [rad]).
 """
 from .._jit import scalar
-from .history import hrow
+from .indexing import hrow
 
 
 @scalar
