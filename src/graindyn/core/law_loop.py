@@ -17,10 +17,15 @@ One loop is compiled per model composition (on its first use, then cached on dis
 a C callback; the time loop, compiled once, calls it through its address
 (``call_law``), so changing the law never recompiles the time loop.
 """
+import ast
+import inspect
+import textwrap
+
 import numba
 import numpy as np
 from llvmlite import ir
 from numba import carray, types
+from numba.core.dispatcher import Dispatcher
 from numba.extending import intrinsic
 
 from .._jit import retarget, scalar
@@ -82,16 +87,92 @@ def _law_rows(workspace, count, dt):
         w[(OUTPUT + 10) * CAP + m] = out[10]
 
 
+class _Specialize(ast.NodeTransformer):
+    """Model ids made constants: ``model[c]`` replaced by its value, names assigned
+    from them followed, and every ``if`` whose test is then constant replaced by the
+    branch it takes, so that numba never compiles the laws the model does not use."""
+
+    def __init__(self, model, constants):
+        self.model = model
+        self.known = dict(constants)
+
+    def value(self, node):
+        """The value of an expression of constants and known names, or None."""
+        for sub in ast.walk(node):
+            if isinstance(sub, ast.Name) and sub.id not in self.known:
+                return None
+            if not isinstance(sub, (ast.Name, ast.Constant, ast.Compare, ast.BoolOp,
+                                    ast.UnaryOp, ast.cmpop, ast.boolop, ast.unaryop,
+                                    ast.Load, ast.expr_context)):
+                return None
+        expression = ast.fix_missing_locations(ast.Expression(node))
+        return eval(compile(expression, "<model>", "eval"), {}, self.known)
+
+    def visit_Subscript(self, node):
+        self.generic_visit(node)
+        if isinstance(node.value, ast.Name) and node.value.id == "model":
+            index = self.value(node.slice)
+            if index is not None:
+                return ast.Constant(self.model[index])
+        return node
+
+    def visit_Assign(self, node):
+        self.generic_visit(node)
+        if len(node.targets) == 1 and isinstance(node.targets[0], ast.Name) \
+                and isinstance(node.value, ast.Constant):
+            self.known[node.targets[0].id] = node.value.value
+        return node
+
+    def visit_If(self, node):
+        test = self.value(self.visit(node.test))
+        if test is None:
+            self.generic_visit(node)
+            return node
+        kept = []
+        for statement in node.body if test else node.orelse:
+            done = self.visit(statement)
+            kept.extend(done if isinstance(done, list) else [done])
+        return kept or ast.Pass()
+
+
+def specialized(dispatcher, model, make, memo, swap, suffix):
+    """A copy of ``dispatcher`` (whose model argument is ``model``) with the model ids
+    made constants and the branches they decide pruned (_Specialize), its callees
+    copied as retarget does; compiled by ``make``."""
+    source = dispatcher.py_func
+    tree = ast.parse(textwrap.dedent(inspect.getsource(source)))
+    function = tree.body[0]
+    function.decorator_list = []
+    names = dict(source.__globals__)
+    constants = {k: v for k, v in names.items() if type(v) is int}
+    _Specialize(model, constants).visit(function)
+    ast.fix_missing_locations(tree)
+    code = compile(tree, inspect.getsourcefile(source), "exec")
+    for name in {n.id for n in ast.walk(function) if isinstance(n, ast.Name)}:
+        if name in swap:
+            names[name] = swap[name]
+        elif isinstance(names.get(name), Dispatcher):
+            names[name] = retarget(names[name], make, memo, swap, suffix)
+    scope = {}
+    exec(code, names, scope)
+    clone = scope[source.__name__]
+    clone.__qualname__ = source.__qualname__ + suffix
+    return make(clone)
+
+
 def law_address(model_ids):
     """Address of the compiled law loop for the model ``model_ids`` (ContactModel.ids())."""
     key = tuple(int(x) for x in model_ids)
     if key not in _LOOPS:
+        from ..physics.contact import contact_force
         from .contacts import contact_response
 
         suffix = "_" + "_".join(str(x) for x in key)
-        laws = retarget(contact_response,
-                        numba.njit(error_model="numpy", inline="always"), {},
-                        {"hrow": workspace_hrow, "prow": workspace_prow}, suffix)
+        make = numba.njit(error_model="numpy", inline="always")
+        swap = {"hrow": workspace_hrow, "prow": workspace_prow}
+        memo = {}
+        memo[contact_force] = specialized(contact_force, key, make, memo, swap, suffix)
+        laws = retarget(contact_response, make, memo, swap, suffix)
         loop = retarget(numba.njit(_law_rows),
                         numba.cfunc(SIGNATURE, cache=True, error_model="numpy"), {},
                         {"MODEL": key, "contact_response": laws}, suffix)
