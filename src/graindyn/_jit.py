@@ -7,7 +7,7 @@ reference counting); ``inlined`` for a large one called from several parallel lo
 compiled once and inlined by LLVM (IR-inlining it into each parfor body multiplied the
 compile time by three; LLVM inlining keeps all but about 3 % of the speed);
 ``kernel`` for serial array loops; ``parallel`` for loops over grains or contacts with
-``prange``.  All are cached on disk (``cache=True``), so
+``prange``; ``callback`` for C callbacks.  All are cached on disk (``cache=True``), so
 importing graindyn compiles nothing and a warm start only loads the cache.
 ``error_model="numpy"`` makes division by zero give inf/nan as on the GPU instead of
 raising, and fastmath stays off so that results are reproducible across machines.
@@ -55,6 +55,12 @@ kernel = numba.njit(cache=True, error_model="numpy")
 block = numba.njit(cache=True, error_model="numpy", _nrt=False)
 parallel = numba.njit(cache=True, error_model="numpy", parallel=True)
 prange = numba.prange
+
+
+def callback(signature):
+    """A C callback of the given numba signature, cached on disk (the CPU's law loops,
+    core/law_loop.py, called from compiled code through their address)."""
+    return numba.cfunc(signature, cache=True, error_model="numpy")
 
 
 def retarget(dispatcher, make, memo, swap=None, suffix=""):

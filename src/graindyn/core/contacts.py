@@ -64,6 +64,13 @@ def _release(model, params, a, b, r_eff, history, force, torque, k):
 
 
 @scalar
+def grain_row(i, positions, radii, masses, materials):
+    """Position (3) [m], radius [m], mass [kg] and material of grain i."""
+    return (positions[i, 0], positions[i, 1], positions[i, 2], radii[i], masses[i],
+            materials[i])
+
+
+@scalar
 def pair_geometry(i, j, xi, yi, zi, r_i, m_i, positions, radii, masses, fixed, px, py, pz,
                   lx, ly, lz):
     """Pair (i, j) with i's position, radius and mass given: (touching, overlap [m],
@@ -117,18 +124,13 @@ def pair_row(i, model, params, positions, velocities, angular_velocities, radii,
     lx, ly, lz = periodic_length[0], periodic_length[1], periodic_length[2]
     worst = max_overlap[i]
     # grain i's data, loaded once (the compiler cannot hoist them past the stores)
-    xi = positions[i, 0]
-    yi = positions[i, 1]
-    zi = positions[i, 2]
+    xi, yi, zi, r_i, m_i, a = grain_row(i, positions, radii, masses, materials)
     vxi = velocities[i, 0]
     vyi = velocities[i, 1]
     vzi = velocities[i, 2]
     wxi = angular_velocities[i, 0]
     wyi = angular_velocities[i, 1]
     wzi = angular_velocities[i, 2]
-    r_i = radii[i]
-    m_i = masses[i]
-    a = materials[i]
     fx = fy = fz = tx = ty = tz = 0.0
     for k in range(start[i], start[i + 1]):
         j = partners[k]
@@ -207,12 +209,7 @@ def _pair_block(lo, hi, law, work, slots, model, params, positions, velocities,
     lx, ly, lz = periodic_length[0], periodic_length[1], periodic_length[2]
     count = 0
     for i in range(lo, hi):
-        xi = positions[i, 0]
-        yi = positions[i, 1]
-        zi = positions[i, 2]
-        r_i = radii[i]
-        m_i = masses[i]
-        a = materials[i]
+        xi, yi, zi, r_i, m_i, a = grain_row(i, positions, radii, masses, materials)
         worst = max_overlap[i]
         for d in range(6):
             own[i, d] = 0.0

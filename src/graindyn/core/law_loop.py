@@ -21,14 +21,13 @@ import ast
 import inspect
 import textwrap
 
-import numba
 import numpy as np
 from llvmlite import ir
 from numba import carray, types
 from numba.core.dispatcher import Dispatcher
 from numba.extending import intrinsic
 
-from .._jit import retarget, scalar
+from .._jit import callback, kernel, retarget, scalar
 from ..physics.registry import COL
 
 CAP = 128              # contacts per batch (workspace columns)
@@ -168,13 +167,12 @@ def law_address(model_ids):
         from .contacts import contact_response
 
         suffix = "_" + "_".join(str(x) for x in key)
-        make = numba.njit(error_model="numpy", inline="always")
+        make = scalar
         swap = {"hrow": workspace_hrow, "prow": workspace_prow}
         memo = {}
         memo[contact_force] = specialized(contact_force, key, make, memo, swap, suffix)
         laws = retarget(contact_response, make, memo, swap, suffix)
-        loop = retarget(numba.njit(_law_rows),
-                        numba.cfunc(SIGNATURE, cache=True, error_model="numpy"), {},
+        loop = retarget(kernel(_law_rows), callback(SIGNATURE), {},
                         {"MODEL": key, "contact_response": laws}, suffix)
         _LOOPS[key] = loop
     return _LOOPS[key].address

@@ -146,19 +146,19 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
         wry = wy - wn * ny
         wrz = wz - wn * nz
     if tangential == _COULOMB:
-        ftx, fty, ftz, dissipated_t = tangential_coulomb_force(params[prow(a, b, _MU)], cap, vtx, vty,
-                                                               vtz, dt)
+        ftx, fty, ftz, dissipated_t = tangential_coulomb_force(
+            params[prow(a, b, _MU)], cap, vtx, vty, vtz, dt)
     elif tangential == _CUNDALL:
         ftx, fty, ftz, dissipated_t = tangential_spring_force(
-            params[prow(a, b, _KT)], params[prow(a, b, _XT)] * c, params[prow(a, b, _MU)], cap, 0, nx, ny, nz,
-            vtx, vty, vtz, history, k, ht, dt)
+            params[prow(a, b, _KT)], params[prow(a, b, _XT)] * c, params[prow(a, b, _MU)],
+            cap, 0, nx, ny, nz, vtx, vty, vtz, history, k, ht, dt)
     elif tangential == _MINDLIN or tangential == _KARRECH or tangential == _OQUENDO:
         fresh = history[hrow(k, ht + 3)] == 0.0      # no contact radius stored yet: first touch
         kt, lost_t = tangential_mindlin_rescale(params[prow(a, b, _G)], radius, history, k, ht)
         if tangential == _MINDLIN:
             ftx, fty, ftz, dissipated_t = tangential_spring_force(
-                kt, params[prow(a, b, _XT)] * c, params[prow(a, b, _MU)], cap, 0, nx, ny, nz, vtx, vty,
-                vtz, history, k, ht, dt)
+                kt, params[prow(a, b, _XT)] * c, params[prow(a, b, _MU)], cap, 0, nx, ny, nz,
+                vtx, vty, vtz, history, k, ht, dt)
         elif tangential == _KARRECH:
             ftx, fty, ftz, dissipated_t = tangential_spring_force(
                 kt, damping_karrech_coefficient(m_eff, kt, params[prow(a, b, _ALPHA_T)]),
@@ -166,13 +166,14 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
         else:
             threshold = params[prow(a, b, _SLIP)]
             ftx, fty, ftz, dissipated_t, sliding = tangential_oquendo_force(
-                kt, params[prow(a, b, _XT)] * c, params[prow(a, b, _MU)], params[prow(a, b, _MU_S)], threshold,
-                fresh, cap, nx, ny, nz, vtx, vty, vtz, history, k, ht, dt)
+                kt, params[prow(a, b, _XT)] * c, params[prow(a, b, _MU)],
+                params[prow(a, b, _MU_S)], threshold, fresh, cap, nx, ny, nz, vtx, vty, vtz,
+                history, k, ht, dt)
             # rolling (Oquendo Eq. 7-9): not sliding and R'_ij |w_r| above the threshold
             if sliding == 0.0 and r_roll * math.sqrt(wrx * wrx + wry * wry + wrz * wrz) \
                     > threshold:
-                mx, my, mz, lost_r = rolling_constant_torque(params[prow(a, b, _MU_R)] * r_roll * cap,
-                                                             wrx, wry, wrz, dt)
+                mx, my, mz, lost_r = rolling_constant_torque(
+                    params[prow(a, b, _MU_R)] * r_roll * cap, wrx, wry, wrz, dt)
                 dissipated_t += lost_r
         dissipated_t += lost_t
     else:
@@ -184,20 +185,21 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
     elif rolling == _ROLL_EPSD:
         r2 = r_eff * r_eff
         rx, ry, rz, lost_r = tangential_spring_force(
-            params[prow(a, b, _K_ROLL)] * r2, params[prow(a, b, _C_ROLL)] * r2, params[prow(a, b, _MU_R)] * r_eff,
-            cap, 2, nx, ny, nz, wrx, wry, wrz, history, k, model[_H_ROLLING], dt)
+            params[prow(a, b, _K_ROLL)] * r2, params[prow(a, b, _C_ROLL)] * r2,
+            params[prow(a, b, _MU_R)] * r_eff, cap, 2, nx, ny, nz, wrx, wry, wrz, history, k,
+            model[_H_ROLLING], dt)
     else:
         rx = ry = rz = lost_r = 0.0
     twisting = model[4]
     if twisting == _TWIST_OQUENDO:
-        tw, lost_w = twisting_oquendo_torque(params[prow(a, b, _GAMMA_NT)], m_eff, r_eff, overlap, wn,
-                                             dt)
+        tw, lost_w = twisting_oquendo_torque(params[prow(a, b, _GAMMA_NT)], m_eff, r_eff,
+                                             overlap, wn, dt)
     elif twisting == _TWIST_CONSTANT:
         tw, lost_w = twisting_constant_torque(params[prow(a, b, _MU_TW)] * radius * cap, wn, dt)
     elif twisting == _TWIST_EPSD:
         tw, lost_w = twisting_spring_torque(params[prow(a, b, _K_TW)], params[prow(a, b, _C_TW)],
-                                            params[prow(a, b, _MU_TW)] * radius * cap, wn, history, k,
-                                            model[_H_TWISTING], dt)
+                                            params[prow(a, b, _MU_TW)] * radius * cap, wn,
+                                            history, k, model[_H_TWISTING], dt)
     else:
         tw = lost_w = 0.0
     return (fn, ftx, fty, ftz, mx + rx + tw * nx, my + ry + tw * ny, mz + rz + tw * nz,
@@ -237,10 +239,12 @@ def contact_energy(model, params, a, b, overlap, r_eff, history, k):
     elif normal == _HERTZ:
         energy = normal_hertz_energy(overlap, r_eff, params[prow(a, b, _E)])
     elif normal == _WALTON_BRAUN:
-        energy = normal_walton_braun_energy(overlap, params[prow(a, b, _KN)], params[prow(a, b, _EN)],
+        energy = normal_walton_braun_energy(overlap, params[prow(a, b, _KN)],
+                                            params[prow(a, b, _EN)],
                                             history, k, model[_H_NORMAL])
     else:
-        energy = normal_hooke_energy(overlap, params[prow(a, b, _EN)] ** 2 * params[prow(a, b, _KN)])
+        energy = normal_hooke_energy(overlap,
+                                     params[prow(a, b, _EN)] ** 2 * params[prow(a, b, _KN)])
     return energy + _spring_energy(model, params, a, b, r_eff, history, k)
 
 

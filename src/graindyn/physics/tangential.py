@@ -100,7 +100,8 @@ def tangential_mindlin_stiffness(shear_eff, contact_radius):
 @scalar
 def tangential_spring_energy(kt, history, k, h):
     """Energy kt |zeta|^2/2 [J] stored in the tangential spring history[hrow(k, h:h+3)]."""
-    return 0.5 * kt * (history[hrow(k, h)] ** 2 + history[hrow(k, h + 1)] ** 2 + history[hrow(k, h + 2)] ** 2)
+    return 0.5 * kt * (history[hrow(k, h)] ** 2 + history[hrow(k, h + 1)] ** 2
+                       + history[hrow(k, h + 2)] ** 2)
 
 
 @scalar
