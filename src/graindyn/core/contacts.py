@@ -6,6 +6,11 @@ torque on itself as it goes (``own``) and stores for each pair only what the oth
 grain needs (the force, and the torque on that grain).  The gather runs inside the
 integrator's pass over grains (integrators.after_force).
 
+On the CPU the touching pairs of a block of grains are gathered CAP at a time and
+their law evaluated in SIMD lanes by a loop compiled for the model (core/law_loop.py,
+_pair_block); the GPU evaluates them one by one per grain (pair_row).  Both give the
+same forces, to the bit.
+
 Geometry (Oquendo Eq. 3-4): n = (r_i - r_j)/|r_i - r_j|, overlap h = R_i + R_j - |r_i - r_j|,
 the contact point sits at R'_i = R_i - h R_j/(R_i + R_j) from grain i, and the relative
 velocity of i at that point is v_i - v_j - (R'_i w_i + R'_j w_j) x n.
