@@ -22,16 +22,9 @@ import time
 import numpy as np
 
 
-def main(argv):
-    if len(argv) not in (10, 11):
-        sys.exit(__doc__)
-    state_file, cyl, size, young, rest, dt, skin, warm, steps, threads = argv[:10]
-    laws = argv[10].split(",") if len(argv) == 11 else ["hertz", "tsuji", "mindlin"]
-    import numba
-
-    numba.set_num_threads(int(threads))
+def bed(state_file, cyl, size, young, rest, dt, skin, laws=("hertz", "tsuji", "mindlin")):
+    """The Simulation of the benchmark bed (arguments as on the command line)."""
     import graindyn as gd
-    from graindyn.analysis.packing import coordination_number
 
     data = np.loadtxt(state_file, ndmin=2)
     size = float(size)
@@ -48,8 +41,22 @@ def main(argv):
     else:
         walls = [gd.Plane((0, 0, 0), (1, 0, 0)), gd.Plane((size, 0, 0), (-1, 0, 0)),
                  gd.Plane((0, 0, 0), (0, 1, 0)), gd.Plane((0, size, 0), (0, -1, 0)), floor]
-    sim = gd.Simulation(state, [grain], model, walls=walls, dt=float(dt), skin=float(skin),
-                        check_interval=1000)
+    return gd.Simulation(state, [grain], model, walls=walls, dt=float(dt), skin=float(skin),
+                         check_interval=1000)
+
+
+def main(argv):
+    if len(argv) not in (10, 11):
+        sys.exit(__doc__)
+    state_file, cyl, size, young, rest, dt, skin, warm, steps, threads = argv[:10]
+    laws = argv[10].split(",") if len(argv) == 11 else ["hertz", "tsuji", "mindlin"]
+    import numba
+
+    numba.set_num_threads(int(threads))
+    from graindyn.analysis.packing import coordination_number
+
+    sim = bed(state_file, cyl, size, young, rest, dt, skin, laws)
+    state = sim.state
     sim.run(steps=int(warm))
     t0 = time.perf_counter()
     sim.run(steps=int(steps))

@@ -2,14 +2,17 @@
 deterministic gather of those arrays onto grains (each grain sums its own contacts in
 fixed order: no atomics, same numbers for the same thread count).  A grain's pairs are
 listed with the grain of lower index, which computes them: it sums their force and
-torque on itself as it goes (``own``) and stores for each pair only what the other
-grain needs (the force, and the torque on that grain).  The gather runs inside the
+torque on itself as it goes (``own``) and stores for each pair what the other grain
+needs (the force, and the torque on that grain).  The gather runs inside the
 integrator's pass over grains (integrators.after_force).
 
 On the CPU the touching pairs of a block of grains are gathered CAP at a time and
 their law evaluated in SIMD lanes by a loop compiled for the model (core/law_loop.py,
 _pair_block); the GPU evaluates them one by one per grain (pair_row).  Both give the
-same forces, to the bit.
+same pair forces, to the bit.  The CPU's block also adds a pair's force and torque to
+its second grain's ``own`` when that grain is in the block (one thread owns the whole
+block), so the gather reads back only the pairs that cross blocks (``owned_from``);
+the GPU gathers every pair.  Only the order of the sums differs.
 
 Geometry (Oquendo Eq. 3-4): n = (r_i - r_j)/|r_i - r_j|, overlap h = R_i + R_j - |r_i - r_j|,
 the contact point sits at R'_i = R_i - h R_j/(R_i + R_j) from grain i, and the relative
@@ -177,22 +180,30 @@ def pair_row(i, model, params, positions, velocities, angular_velocities, radii,
 
 
 @scalar
-def _flush(law, work, count, slots, history, pair_force, own, pair_torque_j, dt):
+def _flush(law, work, count, slots, hi, history, pair_force, own, pair_torque_j, dt):
     """Evaluate the law on the ``count`` contacts gathered in ``work`` (law_loop.py) and
-    scatter them back in gathering order: forces, histories, and the sums over each
-    grain's own pairs; returns the normal and tangential energy dissipated [J]."""
+    scatter them back in gathering order: forces, histories, and the sums on each grain
+    of the block (grains below ``hi``); the torque on a second grain beyond the block is
+    stored for the gather.  Returns the normal and tangential energy dissipated [J]."""
     call_law(law, work, count, dt)
     lost_n = 0.0
     lost_t = 0.0
     for s in range(count):
         k = slots[0, s]
         i = slots[1, s]
+        j = slots[2, s]
+        inside = j < hi
         for d in range(3):
             f = work[(OUTPUT + d) * CAP + s]
+            torque_j = work[(OUTPUT + 6 + d) * CAP + s]
             pair_force[k, d] = f
-            pair_torque_j[k, d] = work[(OUTPUT + 6 + d) * CAP + s]
             own[i, d] += f
             own[i, 3 + d] += work[(OUTPUT + 3 + d) * CAP + s]
+            if inside:
+                own[j, d] -= f
+                own[j, 3 + d] += torque_j
+            else:
+                pair_torque_j[k, d] = torque_j
         for h in range(history.shape[1]):
             history[k, h] = work[(HISTORY + h) * CAP + s]
         lost_n += work[(OUTPUT + 9) * CAP + s]
@@ -201,32 +212,38 @@ def _flush(law, work, count, slots, history, pair_force, own, pair_torque_j, dt)
 
 
 @block
-def _pair_block(lo, hi, law, work, slots, model, params, positions, velocities,
+def _pair_block(lo, hi, law, work, slots, dirty, model, params, positions, velocities,
                 angular_velocities, radii, masses, materials, fixed, periodic_flag,
                 periodic_length, start, partners, history, pair_force, own, pair_torque_j,
                 max_overlap, dt):
     """The pairs listed by grains lo..hi-1, compiled once as a serial function: the
     touching ones gathered CAP at a time into ``work`` and evaluated by the law loop
-    (law_loop.py); returns the energies.  Same forces as pair_row, to the bit."""
+    (law_loop.py); returns the energies.  Same pair forces as pair_row, to the bit.
+    dirty[k] = 0 says that pair k's force and history are zero (it was not touching at
+    the last evaluation), so an open pair is not read again."""
     dissipated_n = 0.0
     dissipated_t = 0.0
     px, py, pz = periodic_flag[0], periodic_flag[1], periodic_flag[2]
     lx, ly, lz = periodic_length[0], periodic_length[1], periodic_length[2]
     count = 0
     for i in range(lo, hi):
-        xi, yi, zi, r_i, m_i, a = grain_row(i, positions, radii, masses, materials)
-        worst = max_overlap[i]
         for d in range(6):
             own[i, d] = 0.0
+    for i in range(lo, hi):
+        xi, yi, zi, r_i, m_i, a = grain_row(i, positions, radii, masses, materials)
+        worst = max_overlap[i]
         for k in range(start[i], start[i + 1]):
             j = partners[k]
             touching, overlap, ratio, lever_i, lever_j, r_eff, m_eff, nx, ny, nz = \
                 pair_geometry(i, j, xi, yi, zi, r_i, m_i, positions, radii, masses, fixed,
                               px, py, pz, lx, ly, lz)
             if not touching:
-                dissipated_t += _opened(model, params, a, materials[j], r_eff, history,
-                                        pair_force, pair_torque_j, k)
+                if dirty[k]:
+                    dissipated_t += _opened(model, params, a, materials[j], r_eff, history,
+                                            pair_force, pair_torque_j, k)
+                    dirty[k] = 0
                 continue
+            dirty[k] = 1
             worst = max(worst, ratio)
             c = count
             work[OVERLAP * CAP + c] = overlap
@@ -250,16 +267,17 @@ def _pair_block(lo, hi, law, work, slots, model, params, positions, velocities,
                 work[(HISTORY + h) * CAP + c] = history[k, h]
             slots[0, c] = k
             slots[1, c] = i
+            slots[2, c] = j
             count += 1
             if count == CAP:
-                dn, dt_ = _flush(law, work, count, slots, history, pair_force, own,
+                dn, dt_ = _flush(law, work, count, slots, hi, history, pair_force, own,
                                  pair_torque_j, dt)
                 dissipated_n += dn
                 dissipated_t += dt_
                 count = 0
         max_overlap[i] = worst
     if count > 0:
-        dn, dt_ = _flush(law, work, count, slots, history, pair_force, own, pair_torque_j,
+        dn, dt_ = _flush(law, work, count, slots, hi, history, pair_force, own, pair_torque_j,
                          dt)
         dissipated_n += dn
         dissipated_t += dt_
@@ -273,21 +291,23 @@ def pair_forces(model, params, law, positions, velocities, angular_velocities, r
     """Forces of every listed pair; zero (and history reset) for pairs not touching.
 
     law : (address of the law loop (law_loop.law_address), workspaces (nblock, ...),
-    slots (nblock, 2, CAP)).
+    slots (nblock, 3, CAP), dirty (one byte per pair slot, law_loop.workspace)).
     pair_force[k] [N] is the force on the first grain i of pair k and pair_torque_j[k]
-    [N m] the torque on its second grain; own[i] (6) is the sum of the forces and
-    torques on i of the pairs it lists, in list order.
+    [N m] the torque on its second grain j when j is in another block; own[i] (6) is
+    the sum of the forces and torques on i of the pairs it lists and of the pairs of
+    its block that list it, in gathering order.
     max_overlap[i] keeps the largest overlap / min(R_i, R_j) of grain i's pairs since
     the loop last read and reset it.
     Returns the energies dissipated in the step, normal and tangential [J], summed over
     ``nblock`` fixed blocks of grains (block_count) in block order.
     """
     n = positions.shape[0]
-    address, work, slots = law
+    address, work, slots, dirty = law
     sums = np.zeros((nblock, 2))
     for b in prange(nblock):
         sums[b, 0], sums[b, 1] = _pair_block(
-            b * n // nblock, (b + 1) * n // nblock, address, work[b], slots[b], model, params,
+            b * n // nblock, (b + 1) * n // nblock, address, work[b], slots[b], dirty, model,
+            params,
             positions, velocities, angular_velocities, radii, masses, materials, fixed,
             periodic_flag, periodic_length, start, partners, history, pair_force, own,
             pair_torque_j, max_overlap, dt)
@@ -398,11 +418,11 @@ def _add_contact(fx, fy, fz, tx, ty, tz, force, sign, torque, k):
 
 
 @scalar
-def gather_grain(i, mass, gravity, own, reverse_start, reverse_pairs, pair_force,
-                 pair_torque_j, wall_start, wall_force, wall_torque):
-    """Force [N] and torque [N m] on grain i: m_i g plus its pair contacts (the sum of
-    those it lists, then one by one those that list it) and its wall contacts, always
-    in this order."""
+def gather_grain(i, mass, gravity, own, reverse_start, reverse_pairs, owned_from,
+                 pair_force, pair_torque_j, wall_start, wall_force, wall_torque):
+    """Force [N] and torque [N m] on grain i: m_i g plus its pair contacts (own[i], then
+    one by one the pairs k < owned_from that list it: those from k = owned_from on are
+    already in own[i]) and its wall contacts, always in this order."""
     fx = mass * gravity[0] + own[i, 0]
     fy = mass * gravity[1] + own[i, 1]
     fz = mass * gravity[2] + own[i, 2]
@@ -410,8 +430,10 @@ def gather_grain(i, mass, gravity, own, reverse_start, reverse_pairs, pair_force
     ty = own[i, 4]
     tz = own[i, 5]
     for s in range(reverse_start[i], reverse_start[i + 1]):
-        fx, fy, fz, tx, ty, tz = _add_contact(fx, fy, fz, tx, ty, tz, pair_force, -1.0,
-                                              pair_torque_j, reverse_pairs[s])
+        k = reverse_pairs[s]
+        if k < owned_from:
+            fx, fy, fz, tx, ty, tz = _add_contact(fx, fy, fz, tx, ty, tz, pair_force, -1.0,
+                                                  pair_torque_j, k)
     for q in range(wall_start[i], wall_start[i + 1]):
         fx, fy, fz, tx, ty, tz = _add_contact(fx, fy, fz, tx, ty, tz, wall_force, 1.0,
                                               wall_torque, q)

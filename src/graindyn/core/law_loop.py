@@ -30,7 +30,7 @@ from numba.extending import intrinsic
 from .._jit import callback, kernel, retarget, scalar
 from ..physics.registry import COL
 
-CAP = 128              # contacts per batch (workspace columns)
+CAP = 64              # contacts per batch (workspace columns)
 # workspace rows: the inputs of contact_response, its 11 outputs, the pair-table
 # columns, the history values
 (OVERLAP, LEVER_I, LEVER_J, R_EFF, M_EFF, NX, NY, NZ, DVX, DVY, DVZ, WX, WY, WZ, DWX, DWY,
@@ -195,21 +195,27 @@ def call_law(typingctx, address, workspace, count, dt):
     return sig, codegen
 
 
-def workspace(blocks, history_size, params):
+def workspace(blocks, history_size):
     """Scratch of the law loop for ``blocks`` blocks of grains: workspaces (blocks,
-    rows * CAP) and the pair and grain of each column (blocks, 2, CAP).  With a
-    single material the pair-table rows are filled once per chunk (fill_params), and
-    the pair loop does not copy them for every contact."""
+    rows * CAP), the pair, first and second grain of each column (blocks, 3, CAP), and
+    the pair loop's dirty flags (one byte per pair slot, sized by ``prepare``)."""
     if history_size > MAX_HISTORY:
         raise ValueError(f"a model keeps at most {MAX_HISTORY} history values")
-    work = np.zeros((blocks, workspace_rows(history_size) * CAP))
-    fill_params(work, params)
-    return work, np.zeros((blocks, 2, CAP), np.int64)
+    return (np.zeros((blocks, workspace_rows(history_size) * CAP)),
+            np.zeros((blocks, 3, CAP), np.int64), np.ones(0, np.uint8))
 
 
-def fill_params(work, params):
-    """With a single material, its pair-table row in every column of the workspaces
-    (called before each chunk: the table may have been changed between runs)."""
+def prepare(law, params, pair_capacity):
+    """The law tuple (address, work, slots, dirty) made ready for a chunk: with a single
+    material, its pair-table row in every column of the workspaces (the pair loop then
+    does not copy it for every contact; the table may have changed between runs), and
+    every pair slot marked dirty (its force and history may be non-zero: the lists
+    may have been rebuilt or the arrays replaced since the last chunk)."""
+    address, work, slots, dirty = law
     if params.shape[0] == 1:
         rows = work.reshape(work.shape[0], -1, CAP)
         rows[:, PARAMS:PARAMS + params.shape[2], :] = params[0, 0, :, None]
+    if dirty.size != pair_capacity:
+        dirty = np.ones(pair_capacity, np.uint8)
+    dirty[:] = 1
+    return address, work, slots, dirty

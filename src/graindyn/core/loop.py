@@ -1,16 +1,19 @@
 """The compiled time loop: many steps per call, Python only between chunks.
 
 One step (the order is fixed here and nowhere else):
-  1. rebuild the neighbour lists if some grain (or wall) may have moved more than
-     half the skin by the end of the step; on capacity overflow return GROW before
-     anything has changed, so the caller grows the arrays and calls again;
-  2. for each integrator stage: drift/predict, move prescribed walls, contact forces
-     (pairs, then walls), then one pass over grains that gathers their contact forces,
+  1. for each integrator stage: drift/predict; at the first stage, rebuild the
+     neighbour lists if some grain (or wall) may have moved more than half the skin
+     (on capacity overflow return GROW with the lists unchanged, so the caller grows
+     the arrays and calls again) and move prescribed walls; contact forces (pairs,
+     then walls), then one pass over grains that gathers their contact forces,
      corrects the velocities and bounds the displacement for the next step's check
-     (integrators/passes.py; the integrator's own history is ``integrator_history``);
-  3. time += dt, step += 1, and one more step of integrator history (HISTORY_STEPS,
+     (integrators/passes.py; the integrator's own history is ``integrator_history``).
+     The last pass of a step also does the next step's first drift, unless the step
+     ends the chunk or is checked;
+  2. time += dt, step += 1, and one more step of integrator history (HISTORY_STEPS,
      0 until the first step: multi-step schemes then use their start-up formulas);
-  4. every ``check_interval`` steps: NaN, excessive overlap, and the stop condition.
+  3. every ``check_interval`` steps: NaN, excessive overlap, and the stop condition.
+The first step of a run first builds the lists and evaluates the forces at the start.
 Dissipated energies and the work of moving walls are accumulated in ``clock``.
 """
 import math
@@ -32,6 +35,8 @@ TIME, DT, SKIN, GX, GY, GZ, COND_VALUE, OVERLAP_LIMIT, DISS_N, DISS_T, WALL_WORK
 STEP, DIM, INTEGRATOR, REBUILDS, FORCE_REBUILD, CHECK_INTERVAL, COND_KIND, PRIMED, \
     NEED_PAIRS, NEED_WALLS, HISTORY_STEPS = range(11)
 NCOUNTERS = 11
+# counters[FORCE_REBUILD]: 1 forced, REBUILD_DRIFTED forced after the step's first drift
+REBUILD_DRIFTED = 2
 # compiled stop conditions
 NO_CONDITION, MAX_SPEED_BELOW, ENERGY_RATIO_BELOW = 0, 1, 2
 
@@ -169,7 +174,7 @@ def rebuild_due(clock, offset, reference_offset, velocity):
 
 @kernel
 def _after(integrator, stage, dt, counters, gravity, grains, pairs, walls, periodic,
-           integrator_history, block_scratch):
+           integrator_history, block_scratch, drift_next):
     """integrators.after_force with the arrays it needs taken out of the bundles."""
     (positions, velocities, angular_velocities, orientations, forces, torques, accelerations,
      angular_accelerations, radii, masses, inertias, materials, fixed, reference_positions,
@@ -181,7 +186,40 @@ def _after(integrator, stage, dt, counters, gravity, grains, pairs, walls, perio
                        gravity, pairs, wall_start, contact_force, contact_torque, forces,
                        torques, masses, inertias, positions, reference_positions, velocities,
                        angular_velocities, orientations, accelerations, angular_accelerations,
-                       fixed, periodic[0], periodic[2], integrator_history, block_scratch)
+                       fixed, periodic[0], periodic[2], integrator_history, block_scratch,
+                       drift_next)
+
+
+@kernel
+def _relist(grains, pairs, walls, periodic, clock, counters, law):
+    """Rebuild the neighbour lists when forced or due (rebuild_due); returns DONE, NAN
+    (non-finite positions) or GROW (capacity short: counters say how much is needed,
+    nothing has changed)."""
+    if counters[FORCE_REBUILD] == 0 and not rebuild_due(clock, walls[5], walls[9], walls[6]):
+        return DONE
+    positions = grains[0]
+    if not _all_finite(positions):
+        return NAN
+    (start, partners, history, scratch_start, scratch_partners, scratch_history,
+     reverse_start, reverse_pairs, pair_force, own, pair_torque_j) = pairs
+    (kind, geometry, motion_kind, motion, base, offset, velocity, material, force,
+     reference_offset, wall_start, wall_ids, wall_history, scratch_wall_start,
+     scratch_wall_ids, scratch_wall_history, contact_force, contact_torque) = walls
+    flag, lo, length = periodic
+    needed, wall_needed = rebuild(
+        positions, grains[8], clock[SKIN], flag, lo, length, start, partners, history,
+        scratch_start, scratch_partners, scratch_history, reverse_start, reverse_pairs, kind,
+        geometry, offset, wall_start, wall_ids, wall_history, scratch_wall_start,
+        scratch_wall_ids, scratch_wall_history, grains[13], reference_offset)
+    if needed > partners.size or wall_needed > wall_ids.size:
+        counters[NEED_PAIRS] = needed
+        counters[NEED_WALLS] = wall_needed
+        counters[FORCE_REBUILD] = 1
+        return GROW
+    counters[FORCE_REBUILD] = 0
+    counters[REBUILDS] += 1
+    law[3][:] = 1          # new pair slots: every one may hold force or history
+    return DONE
 
 
 @kernel
@@ -193,50 +231,42 @@ def run_chunk(model, params, law, grains, pairs, walls, periodic, clock, counter
     (positions, velocities, angular_velocities, orientations, forces, torques, accelerations,
      angular_accelerations, radii, masses, inertias, materials, fixed, reference_positions,
      max_overlap) = grains
-    (start, partners, history, scratch_start, scratch_partners, scratch_history,
-     reverse_start, reverse_pairs, pair_force, own, pair_torque_j) = pairs
     (kind, geometry, motion_kind, motion, base, offset, velocity, material, force,
      reference_offset, wall_start, wall_ids, wall_history, scratch_wall_start,
      scratch_wall_ids, scratch_wall_history, contact_force, contact_torque) = walls
-    flag, lo, length = periodic
     dt = clock[DT]
-    skin = clock[SKIN]
     gravity = clock[GX:GZ + 1]
     integrator = counters[INTEGRATOR]
+    # a GROW return after the step's drift: the grains are drifted already
+    drifted = counters[FORCE_REBUILD] == REBUILD_DRIFTED
     for s in range(nsteps):
-        rebuild_now = counters[FORCE_REBUILD] != 0
-        if not rebuild_now:
-            rebuild_now = rebuild_due(clock, offset, reference_offset, velocity)
-        if rebuild_now:
-            if not _all_finite(positions):
-                return NAN, s
-            needed, wall_needed = rebuild(
-                positions, radii, skin, flag, lo, length, start, partners, history,
-                scratch_start, scratch_partners, scratch_history, reverse_start, reverse_pairs,
-                kind, geometry, offset, wall_start, wall_ids, wall_history, scratch_wall_start,
-                scratch_wall_ids, scratch_wall_history, reference_positions, reference_offset)
-            if needed > partners.size or wall_needed > wall_ids.size:
-                counters[NEED_PAIRS] = needed
-                counters[NEED_WALLS] = wall_needed
-                counters[FORCE_REBUILD] = 1
-                return GROW, s
-            counters[FORCE_REBUILD] = 0
-            counters[REBUILDS] += 1
         if counters[PRIMED] == 0:
+            status = _relist(grains, pairs, walls, periodic, clock, counters, law)
+            if status != DONE:
+                return status, s
             evaluate_forces(model, params, law, grains, pairs, walls, periodic, gravity, 0.0,
                             block_scratch.size)
             # stage as a plain int64: a literal 0 would compile the pass a second time
             clock[MOVE] = _after(integrator, np.int64(0), 0.0, counters, gravity, grains,
-                                 pairs, walls, periodic, integrator_history, block_scratch)
+                                 pairs, walls, periodic, integrator_history, block_scratch,
+                                 False)
             counters[PRIMED] = 1
             # grains that start too deep in each other or in a wall: stop before moving
             if max_overlap.size > 0 and max_overlap.max() > clock[OVERLAP_LIMIT]:
                 return OVERLAP, s
-        for stage in range(STAGES[integrator]):
-            before_force(integrator, stage, dt, counters[HISTORY_STEPS] > 0, positions,
-                         velocities, angular_velocities, orientations, accelerations,
-                         angular_accelerations, fixed, integrator_history)
+        last = STAGES[integrator] - 1
+        for stage in range(last + 1):
+            if not drifted:
+                before_force(integrator, stage, dt, counters[HISTORY_STEPS] > 0, positions,
+                             velocities, angular_velocities, orientations, accelerations,
+                             angular_accelerations, fixed, integrator_history)
+            drifted = False
             if stage == 0:
+                status = _relist(grains, pairs, walls, periodic, clock, counters, law)
+                if status == GROW:
+                    counters[FORCE_REBUILD] = REBUILD_DRIFTED
+                if status != DONE:
+                    return status, s
                 walls_advance(motion_kind, motion, base, offset, velocity, force, clock[TIME],
                               dt)
             # each force evaluation stands for its share of the step (the optimized
@@ -248,8 +278,12 @@ def run_chunk(model, params, law, grains, pairs, walls, periodic, clock, counter
             clock[DISS_N] += dn
             clock[DISS_T] += dtan
             clock[WALL_WORK] += power * share
+            # the next step's first drift rides on the last pass over the grains, unless
+            # the step ends the chunk or is checked (the state is then seen as it is)
+            drifted = stage == last and s + 1 < nsteps \
+                and (counters[STEP] + 1) % counters[CHECK_INTERVAL] != 0
             clock[MOVE] = _after(integrator, stage, dt, counters, gravity, grains, pairs,
-                                 walls, periodic, integrator_history, block_scratch)
+                                 walls, periodic, integrator_history, block_scratch, drifted)
         clock[TIME] += dt
         counters[STEP] += 1
         counters[HISTORY_STEPS] += 1

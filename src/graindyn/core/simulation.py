@@ -13,7 +13,7 @@ import numpy as np
 from . import loop
 from .contacts import block_count
 from .integrators import SCHEMES, SLOTS, history_names, integrator_id
-from .law_loop import fill_params, law_address, workspace as law_workspace
+from .law_loop import law_address, prepare, workspace as law_workspace
 from .species import ContactModel, Material
 from .timestep import time_step_report
 from .triggers import Periodic
@@ -267,10 +267,9 @@ class Simulation:
         blocks = block_count(self.state.n, numba.get_num_threads())
         if self.block_scratch.size != blocks or self._law is None:  # first, or new threads
             self.block_scratch = np.zeros(blocks)
-            self._law = (law_address(self.model_ids),
-                         *law_workspace(blocks, self.history_size, self.params))
-        fill_params(self._law[1], self.params)
+            self._law = (law_address(self.model_ids), *law_workspace(blocks, self.history_size))
         while True:
+            self._law = prepare(self._law, self.params, self.pairs[1].size)
             status, done = loop.run_chunk(self.model_ids, self.params, self._law, self._grains(),
                                           self.pairs, self._walls(), self._periodic(),
                                           self.clock, self.counters, self.integrator_history,

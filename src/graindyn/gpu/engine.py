@@ -27,7 +27,7 @@ import numpy as np
 from numba import cuda, float64
 
 from ..core import loop
-from ..core.contacts import pair_row, wall_row
+from ..core.contacts import gather_grain, pair_row, wall_row
 from ..core.integrators import STAGES
 from ..core.integrators.passes import correct_grain, drift_grain
 from ..core.walls import walls_advance
@@ -39,6 +39,9 @@ from .reductions import (BAD, CHECK_OPS, KINETIC, MAX, OVERLAP, POTENTIAL, SPEED
 from .reductions import kernels as reduction_kernels
 
 _KERNELS = {}
+# the GPU's pair kernel sums on each grain only the pairs it lists (contacts.pair_row):
+# its gather reads back every pair that lists the grain (contacts.gather_grain)
+EVERY_PAIR = 1 << 62
 
 
 def kernels():
@@ -49,6 +52,7 @@ def kernels():
     pair = device_function(pair_row)
     wall = device_function(wall_row)
     correct = device_function(correct_grain)
+    gather = device_function(gather_grain)
     advance = device_function(walls_advance)
     due = device_function(loop.rebuild_due)
 
@@ -120,11 +124,12 @@ def kernels():
         buf[t, 1] = 0.0
         buf[t, 2] = 0.0
         if ok:
+            f = gather(i, masses[i], clock[k, loop.GX:loop.GZ + 1], own, reverse_start[k:],
+                       reverse_pairs, EVERY_PAIR, pair_force, pair_torque_j, wall_start[k:],
+                       wall_force, wall_torque)
             buf[t, 0], buf[t, 1], buf[t, 2] = correct(
-                i, integrator, stage, scale * clock[k, loop.DT], started[k] != 0, dim,
-                clock[k, loop.GX:loop.GZ + 1], own, reverse_start[k:], reverse_pairs,
-                pair_force, pair_torque_j, wall_start[k:], wall_force, wall_torque, forces,
-                torques, masses, inertias, positions, reference_positions, velocities,
+                i, integrator, stage, scale * clock[k, loop.DT], started[k] != 0, dim, f,
+                forces, torques, masses, inertias, positions, reference_positions, velocities,
                 angular_velocities, orientations, accelerations, angular_accelerations,
                 fixed, periodic_flag[k], periodic_length[k], history)
         block_rows(buf, 3, bound[cuda.blockIdx.x], ops)

@@ -13,6 +13,8 @@ rotational ones (ids.SLOTS).  ``started``: 0 on the first step after the history
 """
 import math
 
+import numpy as np
+
 from ..._jit import block, parallel, prange, scalar
 from ..contacts import gather_grain
 from ..neighbors import min_image
@@ -93,18 +95,15 @@ def before_force(integrator, stage, dt, started, positions, velocities, angular_
 
 
 @scalar
-def correct_grain(i, integrator, stage, dt, started, dim, gravity, own, reverse_start,
-                  reverse_pairs, pair_force, pair_torque_j, wall_start, wall_force,
-                  wall_torque, forces, torques, masses, inertias, positions,
-                  reference_positions, velocities, angular_velocities, orientations,
-                  accelerations, angular_accelerations, fixed, periodic_flag,
+def correct_grain(i, integrator, stage, dt, started, dim, f, forces, torques, masses,
+                  inertias, positions, reference_positions, velocities, angular_velocities,
+                  orientations, accelerations, angular_accelerations, fixed, periodic_flag,
                   periodic_length, history):
     """Grain i after the force evaluation (the loop body of ``after_force``, shared with
-    the GPU kernels): gather, correct, turn.  Returns |r - r_ref|^2 [m^2], |v|^2
+    the GPU kernels): stores its force and torque f (6, contacts.gather_grain),
+    corrects, turns.  Returns |r - r_ref|^2 [m^2], |v|^2
     [m^2/s^2] and |a|^2 [m^2/s^4] for the half-skin bound."""
     rot = SLOTS[integrator]
-    f = gather_grain(i, masses[i], gravity, own, reverse_start, reverse_pairs,
-                     pair_force, pair_torque_j, wall_start, wall_force, wall_torque)
     for d in range(3):
         forces[i, d] = f[d]
         torques[i, d] = f[3 + d]
@@ -143,25 +142,34 @@ def correct_grain(i, integrator, stage, dt, started, dim, gravity, own, reverse_
 
 
 @block
-def _correct_block(lo, hi, integrator, stage, dt, started, dim, gravity, own, reverse_start,
-                   reverse_pairs, pair_force, pair_torque_j, wall_start, wall_force,
-                   wall_torque, forces, torques, masses, inertias, positions,
+def _correct_block(lo, hi, integrator, stage, dt, started, dim, gravity, own, start,
+                   reverse_start, reverse_pairs, pair_force, pair_torque_j, wall_start,
+                   wall_force, wall_torque, forces, torques, masses, inertias, positions,
                    reference_positions, velocities, angular_velocities, orientations,
                    accelerations, angular_accelerations, fixed, periodic_flag,
-                   periodic_length, history):
-    """correct_grain for grains lo..hi-1, compiled once as a serial function; returns
-    max |r - r_ref| + max |v| dt + max |a| dt^2/2 over them [m] (square roots once per
-    block, not per grain)."""
+                   periodic_length, history, drift_next):
+    """gather_grain and correct_grain for grains lo..hi-1, compiled once as a serial
+    function, then, when ``drift_next``, the first drift of the next step (drift_grain,
+    stage 0: one pass over the grains' arrays instead of two); returns
+    max |r - r_ref| + max |v| dt + max |a| dt^2/2 over them before that drift [m]
+    (square roots once per block, not per grain).  The pairs listed by the block's
+    grains (from start[lo] on) are already in own (contacts._pair_block)."""
+    owned_from = start[lo]
     top_d2 = 0.0
     top_v2 = 0.0
     top_a2 = 0.0
     for i in range(lo, hi):
+        f = gather_grain(i, masses[i], gravity, own, reverse_start, reverse_pairs, owned_from,
+                         pair_force, pair_torque_j, wall_start, wall_force, wall_torque)
         d2, v2, a2 = correct_grain(
-            i, integrator, stage, dt, started, dim, gravity, own, reverse_start,
-            reverse_pairs, pair_force, pair_torque_j, wall_start, wall_force, wall_torque,
-            forces, torques, masses, inertias, positions, reference_positions, velocities,
-            angular_velocities, orientations, accelerations, angular_accelerations, fixed,
-            periodic_flag, periodic_length, history)
+            i, integrator, stage, dt, started, dim, f, forces, torques, masses, inertias,
+            positions, reference_positions, velocities, angular_velocities, orientations,
+            accelerations, angular_accelerations, fixed, periodic_flag, periodic_length,
+            history)
+        if drift_next:
+            drift_grain(i, integrator, np.int64(0), dt, True, positions, velocities,
+                        angular_velocities, orientations, accelerations, angular_accelerations,
+                        fixed, history)
         top_d2 = max(top_d2, d2)
         top_v2 = max(top_v2, v2)
         top_a2 = max(top_a2, a2)
@@ -173,7 +181,7 @@ def after_force(integrator, stage, dt, started, dim, gravity, pairs, wall_start,
                 wall_torque, forces, torques, masses, inertias, positions, reference_positions,
                 velocities, angular_velocities, orientations, accelerations,
                 angular_accelerations, fixed, periodic_flag, periodic_length, history,
-                block_scratch):
+                block_scratch, drift_next):
     """Gather contact forces onto grains, correct velocities with the new accelerations
     (dt = 0 only stores the accelerations at start-up), and return a bound on how far
     any grain may be from where it was at the last neighbour build by the end of the
@@ -181,7 +189,8 @@ def after_force(integrator, stage, dt, started, dim, gravity, pairs, wall_start,
     for the half-skin rule (the higher-order terms of Beeman and Gear are O(dt^3), far
     below the skin).  One pass over grains, in fixed blocks (one per entry of
     block_scratch, contacts.block_count), so the result does not depend on thread
-    timing."""
+    timing.  ``drift_next``: also the first drift of the next step (_correct_block);
+    the bound is the same either way."""
     (start, partners, pair_history, scratch_start, scratch_partners, scratch_history,
      reverse_start, reverse_pairs, pair_force, own, pair_torque_j) = pairs
     n = masses.size
@@ -189,8 +198,9 @@ def after_force(integrator, stage, dt, started, dim, gravity, pairs, wall_start,
     for b in prange(nblock):
         block_scratch[b] = _correct_block(
             b * n // nblock, (b + 1) * n // nblock, integrator, stage, dt, started, dim,
-            gravity, own, reverse_start, reverse_pairs, pair_force, pair_torque_j, wall_start,
-            wall_force, wall_torque, forces, torques, masses, inertias, positions,
-            reference_positions, velocities, angular_velocities, orientations, accelerations,
-            angular_accelerations, fixed, periodic_flag, periodic_length, history)
+            gravity, own, start, reverse_start, reverse_pairs, pair_force, pair_torque_j,
+            wall_start, wall_force, wall_torque, forces, torques, masses, inertias,
+            positions, reference_positions, velocities, angular_velocities, orientations,
+            accelerations, angular_accelerations, fixed, periodic_flag, periodic_length,
+            history, drift_next)
     return block_scratch.max()

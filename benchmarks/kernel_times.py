@@ -1,0 +1,132 @@
+"""Where a step goes: each kernel of the compiled step timed alone on a benchmark bed.
+
+    python benchmarks/kernel_times.py STATE CYL SIZE E e DT SKIN THREADS [REPS]
+
+Builds the bed of benchmarks/lammps_bed.py (same arguments), runs 500 steps, then
+times, each in a compiled loop of REPS calls (default 500, best of 5 batches), the
+kernels one step of the velocity Verlet calls (core/loop.py): the half-skin test,
+drift, pair forces, wall forces (and the sum onto walls), the gather-and-correct pass (alone, and with the next step's drift),
+and a whole step (run_chunk).  Prints microseconds per call.  The kernels run on the
+settled bed, restored before each batch of calls.
+"""
+import sys
+import time
+
+import numba
+import numpy as np
+
+from lammps_bed import bed
+
+
+def main(argv):
+    if len(argv) not in (8, 9):
+        sys.exit(__doc__)
+    state_file, cyl, size, young, rest, dt, skin, threads = argv[:8]
+    reps = int(argv[8]) if len(argv) == 9 else 500
+    numba.set_num_threads(int(threads))
+    from graindyn.core import loop
+    from graindyn.core.contacts import pair_forces, wall_forces
+    from graindyn.core.integrators import before_force
+
+    sim = bed(state_file, cyl, size, young, rest, dt, skin)
+    sim.run(steps=500)
+    args = (sim.model_ids, sim.params, sim._law, sim.clock, sim._grains(), sim._walls(), sim._periodic(), sim.pairs, sim.counters,
+            sim.integrator_history, sim.block_scratch)
+
+    @numba.njit
+    def t_due(reps, model, params, law, clock, g, w, p, pairs, counters, history, scratch):
+        s = 0
+        for _ in range(reps):
+            s += loop.rebuild_due(clock, w[5], w[9], w[6])
+        return s
+
+    @numba.njit
+    def t_drift(reps, model, params, law, clock, g, w, p, pairs, counters, history, scratch):
+        for _ in range(reps):
+            before_force(counters[loop.INTEGRATOR], np.int64(0), clock[loop.DT],
+                         counters[loop.HISTORY_STEPS] > 0, g[0], g[1], g[2], g[3], g[6],
+                         g[7], g[12], history)
+
+    @numba.njit
+    def t_pairs(reps, model, params, law, clock, g, w, p, pairs, counters, history, scratch):
+        s = 0.0
+        for _ in range(reps):
+            s += pair_forces(model, params, law, g[0], g[1], g[2], g[8], g[9], g[11], g[12],
+                             p[0], p[2], pairs[0], pairs[1], pairs[2], pairs[8], pairs[9],
+                             pairs[10], g[14], clock[loop.DT], scratch.size)[0]
+        return s
+
+    @numba.njit
+    def t_walls(reps, model, params, law, clock, g, w, p, pairs, counters, history, scratch):
+        s = 0.0
+        for _ in range(reps):
+            s += wall_forces(model, params, g[0], g[1], g[2], g[8], g[9], g[11], w[0], w[1],
+                             w[5], w[6], w[7], w[10], w[11], w[12], w[16], w[17], g[14],
+                             clock[loop.DT], scratch.size)[0]
+        return s
+
+    @numba.njit
+    def t_forces(reps, model, params, law, clock, g, w, p, pairs, counters, history, scratch):
+        s = 0.0
+        for _ in range(reps):
+            s += loop.evaluate_forces(model, params, law, g, pairs, w, p,
+                                      clock[loop.GX:loop.GZ + 1], clock[loop.DT],
+                                      scratch.size)[2]
+        return s
+
+    @numba.njit
+    def t_after(reps, model, params, law, clock, g, w, p, pairs, counters, history, scratch):
+        s = 0.0
+        for _ in range(reps):
+            s += loop._after(counters[loop.INTEGRATOR], np.int64(0), clock[loop.DT], counters,
+                             clock[loop.GX:loop.GZ + 1], g, pairs, w, p, history, scratch,
+                             False)
+        return s
+
+    @numba.njit
+    def t_fused(reps, model, params, law, clock, g, w, p, pairs, counters, history, scratch):
+        s = 0.0
+        for _ in range(reps):
+            s += loop._after(counters[loop.INTEGRATOR], np.int64(0), clock[loop.DT], counters,
+                             clock[loop.GX:loop.GZ + 1], g, pairs, w, p, history, scratch,
+                             True)
+        return s
+
+    def t_step(reps, *args):
+        sim.run(steps=reps)
+
+    rows = [("whole step (run)", t_step), ("half-skin test", t_due), ("drift", t_drift),
+            ("pair forces", t_pairs), ("wall forces", t_walls),
+            ("all forces + wall sums", t_forces), ("gather + correct", t_after),
+            ("gather + correct + drift", t_fused)]
+    print(f"N {sim.state.n}  threads {threads}  listed pairs {int(sim.pairs[0][-1])}  "
+          f"rebuilds {sim.rebuilds}")
+    arrays = [a for a in _arrays(args) if a.flags.writeable]
+    saved = [a.copy() for a in arrays]
+    for name, fn in rows:
+        for a, copy in zip(arrays, saved):    # each kernel starts from the settled bed
+            np.copyto(a, copy)
+        fn(2, *args)
+        best = min(_timed(fn, reps, args, arrays, saved) for _ in range(5))
+        print(f"{name:24s} {best * 1e6:9.2f} us")
+
+
+def _arrays(item):
+    """The numpy arrays in a nest of tuples."""
+    if isinstance(item, np.ndarray):
+        return [item]
+    if isinstance(item, tuple):
+        return [a for sub in item for a in _arrays(sub)]
+    return []
+
+
+def _timed(fn, reps, args, arrays, saved):
+    for a, copy in zip(arrays, saved):
+        np.copyto(a, copy)
+    t0 = time.perf_counter()
+    fn(reps, *args)
+    return (time.perf_counter() - t0) / reps
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
