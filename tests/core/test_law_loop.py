@@ -94,3 +94,29 @@ def test_batched_law_equals_contact_by_contact(model, one_thread):
     scale = np.abs(reference).max(axis=0)
     assert np.all(np.abs(mine - reference) <= 1e-13 * scale)
     assert not np.array_equal(batched[2], p[9])    # the CPU did add pairs to both grains
+
+
+def test_open_pair_with_only_a_stale_torque_is_cleared(one_thread):
+    """A touching pair of one block stores its force but not the torque on its second
+    grain (own has it), so after a rebuild the slot of an open pair may hold a zero force
+    (a repulsive-only law at rest gives exactly zero) and an old torque: the pair loop
+    must clear it, or the gather adds it to a grain of another block."""
+    sim = bed(("hooke", "linear", "cundall_strack"))
+    g, p, per = sim._grains(), sim.pairs, sim._periodic()
+    n, start, partners = sim.state.n, p[0], p[1]
+    nblock = 2
+    first = np.repeat(np.arange(n), np.diff(start))
+    m = int(start[n])
+    separation = np.linalg.norm(g[0][first] - g[0][partners[:m]], axis=1)
+    open_ = separation > g[8][first] + g[8][partners[:m]]
+    cross = (first < n // 2) & (partners[:m] >= n // 2)
+    k = int(np.flatnonzero(open_ & cross)[0])
+    p[2][k] = 0.0
+    p[8][k] = 0.0
+    p[10][k] = (1e-9, 2e-9, 3e-9)
+    law = prepare((sim._law[0], *workspace(nblock, sim.history_size)), sim.params,
+                  p[1].size)
+    pair_forces(sim.model_ids, sim.params, law, g[0], g[1], g[2], g[8], g[9], g[11],
+                g[12], per[0], per[2], p[0], p[1], p[2], p[8], p[9], p[10], g[14], 1e-7,
+                nblock)
+    assert np.all(p[10][k] == 0.0)

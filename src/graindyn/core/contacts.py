@@ -110,8 +110,12 @@ def pair_geometry(i, j, xi, yi, zi, r_i, m_i, positions, radii, masses, fixed, p
 @scalar
 def _opened(model, params, a, b, r_eff, history, pair_force, pair_torque_j, k):
     """Pair k not touching: the energy [J] its history springs held, if it had opened
-    only now (_release), else 0."""
+    only now (_release), else 0.  The torque row counts too: a touching pair whose
+    force is exactly zero (a repulsive-only law at rest) may leave it stale when the CPU
+    does not store it (_flush), and a rebuild hands the slot to another pair."""
     dirty = pair_force[k, 0] != 0.0 or pair_force[k, 1] != 0.0 or pair_force[k, 2] != 0.0
+    for d in range(3):
+        dirty = dirty or pair_torque_j[k, d] != 0.0
     for h in range(history.shape[1]):
         dirty = dirty or history[k, h] != 0.0
     if dirty:
