@@ -79,20 +79,19 @@ def grain_row(i, positions, radii, masses, materials):
 
 
 @scalar
-def pair_geometry(i, j, xi, yi, zi, r_i, m_i, positions, radii, masses, fixed, px, py, pz,
-                  lx, ly, lz):
-    """Pair (i, j) with i's position, radius and mass given: (touching, overlap [m],
+def separation(j, xi, yi, zi, positions, px, py, pz, lx, ly, lz):
+    """r_i - r_j [m] (3), the minimum image along periodic directions."""
+    return (min_image(xi - positions[j, 0], px, lx), min_image(yi - positions[j, 1], py, ly),
+            min_image(zi - positions[j, 2], pz, lz))
+
+
+@scalar
+def contact_geometry(i, j, dx, dy, dz, r_i, r_j, m_i, masses, fixed):
+    """Touching pair (i, j) with separation (dx, dy, dz) = r_i - r_j: (overlap [m],
     overlap / smaller radius, lever_i, lever_j [m], R* [m], m* [kg], unit normal n (3)
     from j to i)."""
-    dx = min_image(xi - positions[j, 0], px, lx)
-    dy = min_image(yi - positions[j, 1], py, ly)
-    dz = min_image(zi - positions[j, 2], pz, lz)
-    r_j = radii[j]
     rsum = r_i + r_j
-    d2 = dx * dx + dy * dy + dz * dz
-    if d2 >= rsum * rsum:
-        return False, 0.0, 0.0, 0.0, 0.0, r_i * r_j / rsum, 0.0, 0.0, 0.0, 0.0
-    dist = math.sqrt(d2)
+    dist = math.sqrt(dx * dx + dy * dy + dz * dz)
     inv = 1.0 / dist
     overlap = rsum - dist
     if fixed[j]:
@@ -103,8 +102,23 @@ def pair_geometry(i, j, xi, yi, zi, r_i, m_i, positions, radii, masses, fixed, p
         m_eff = m_i * masses[j] / (m_i + masses[j])
     inv_sum = 1.0 / rsum
     share = overlap * inv_sum
-    return (True, overlap, overlap / min(r_i, r_j), r_i - share * r_j, r_j - share * r_i,
+    return (overlap, overlap / min(r_i, r_j), r_i - share * r_j, r_j - share * r_i,
             r_i * r_j * inv_sum, m_eff, dx * inv, dy * inv, dz * inv)
+
+
+@scalar
+def pair_geometry(i, j, xi, yi, zi, r_i, m_i, positions, radii, masses, fixed, px, py, pz,
+                  lx, ly, lz):
+    """Pair (i, j) with i's position, radius and mass given: (touching, then
+    contact_geometry's values; for an open pair only R* [m] is set)."""
+    dx, dy, dz = separation(j, xi, yi, zi, positions, px, py, pz, lx, ly, lz)
+    r_j = radii[j]
+    rsum = r_i + r_j
+    if dx * dx + dy * dy + dz * dz >= rsum * rsum:
+        return False, 0.0, 0.0, 0.0, 0.0, r_i * r_j / rsum, 0.0, 0.0, 0.0, 0.0
+    overlap, ratio, lever_i, lever_j, r_eff, m_eff, nx, ny, nz = contact_geometry(
+        i, j, dx, dy, dz, r_i, r_j, m_i, masses, fixed)
+    return True, overlap, ratio, lever_i, lever_j, r_eff, m_eff, nx, ny, nz
 
 
 @scalar
@@ -184,11 +198,52 @@ def pair_row(i, model, params, positions, velocities, angular_velocities, radii,
 
 
 @scalar
-def _flush(law, work, count, slots, hi, history, pair_force, own, pair_torque_j, dt):
-    """Evaluate the law on the ``count`` contacts gathered in ``work`` (law_loop.py) and
-    scatter them back in gathering order: forces, histories, and the sums on each grain
-    of the block (grains below ``hi``); the torque on a second grain beyond the block is
-    stored for the gather.  Returns the normal and tangential energy dissipated [J]."""
+def _fill(count, work, slots, params, velocities, angular_velocities, radii, masses,
+          materials, fixed, history, max_overlap):
+    """Complete the contacts 0..count-1 gathered in ``work`` (their separations in rows
+    NX..NZ, their pair, first and second grain in ``slots``): geometry
+    (contact_geometry), velocities, pair-table row (with several materials) and history;
+    raises max_overlap of each first grain to its overlap / smaller radius."""
+    for c in range(count):
+        k = slots[0, c]
+        i = slots[1, c]
+        j = slots[2, c]
+        overlap, ratio, lever_i, lever_j, r_eff, m_eff, nx, ny, nz = contact_geometry(
+            i, j, work[NX * CAP + c], work[NY * CAP + c], work[NZ * CAP + c], radii[i],
+            radii[j], masses[i], masses, fixed)
+        max_overlap[i] = max(max_overlap[i], ratio)
+        work[OVERLAP * CAP + c] = overlap
+        work[LEVER_I * CAP + c] = lever_i
+        work[LEVER_J * CAP + c] = lever_j
+        work[R_EFF * CAP + c] = r_eff
+        work[M_EFF * CAP + c] = m_eff
+        work[NX * CAP + c] = nx
+        work[NY * CAP + c] = ny
+        work[NZ * CAP + c] = nz
+        for d in range(3):
+            work[(DVX + d) * CAP + c] = velocities[i, d] - velocities[j, d]
+            work[(WX + d) * CAP + c] = lever_i * angular_velocities[i, d] \
+                + lever_j * angular_velocities[j, d]
+            work[(DWX + d) * CAP + c] = angular_velocities[i, d] - angular_velocities[j, d]
+        if params.shape[0] > 1:            # one material: rows filled once (law_loop)
+            a = materials[i]
+            b = materials[j]
+            for col in range(params.shape[2]):
+                work[(PARAMS + col) * CAP + c] = params[a, b, col]
+        for h in range(history.shape[1]):
+            work[(HISTORY + h) * CAP + c] = history[k, h]
+
+
+@scalar
+def _flush(law, work, count, slots, hi, params, velocities, angular_velocities, radii, masses,
+           materials, fixed, history, pair_force, own, pair_torque_j, max_overlap, dt):
+    """Complete the ``count`` contacts gathered in ``work`` (_fill), evaluate their law
+    (law_loop.py) and scatter them back in gathering order: forces, histories, and the
+    sums on each grain of the block (grains below ``hi``); the torque on a second grain
+    beyond the block is stored for the gather.  Returns the normal and tangential
+    energy dissipated [J]."""
+    _fill(count, work, slots, params, velocities, angular_velocities, radii, masses,
+          materials, fixed, history, max_overlap)
     call_law(law, work, count, dt)
     lost_n = 0.0
     lost_t = 0.0
@@ -222,9 +277,12 @@ def _pair_block(lo, hi, law, work, slots, dirty, model, params, positions, veloc
                 max_overlap, dt):
     """The pairs listed by grains lo..hi-1, compiled once as a serial function: the
     touching ones gathered CAP at a time into ``work`` and evaluated by the law loop
-    (law_loop.py); returns the energies.  Same pair forces as pair_row, to the bit.
-    dirty[k] = 0 says that pair k's force and history are zero (it was not touching at
-    the last evaluation), so an open pair is not read again."""
+    (_flush); returns the energies.  Same pair forces as pair_row, to the bit.
+    The gathering has no branch on the contact test (every pair is written at the next
+    free column, which advances only when it touches): that branch, taken or not at
+    random, cost more than the rest of the gathering.  dirty[k] = 0 says that pair k's
+    force, torque and history are zero (it was open at the last evaluation), so an open
+    pair is not read again."""
     dissipated_n = 0.0
     dissipated_t = 0.0
     px, py, pz = periodic_flag[0], periodic_flag[1], periodic_flag[2]
@@ -235,54 +293,34 @@ def _pair_block(lo, hi, law, work, slots, dirty, model, params, positions, veloc
             own[i, d] = 0.0
     for i in range(lo, hi):
         xi, yi, zi, r_i, m_i, a = grain_row(i, positions, radii, masses, materials)
-        worst = max_overlap[i]
         for k in range(start[i], start[i + 1]):
             j = partners[k]
-            touching, overlap, ratio, lever_i, lever_j, r_eff, m_eff, nx, ny, nz = \
-                pair_geometry(i, j, xi, yi, zi, r_i, m_i, positions, radii, masses, fixed,
-                              px, py, pz, lx, ly, lz)
-            if not touching:
-                if dirty[k]:
-                    dissipated_t += _opened(model, params, a, materials[j], r_eff, history,
-                                            pair_force, pair_torque_j, k)
-                    dirty[k] = 0
-                continue
-            dirty[k] = 1
-            worst = max(worst, ratio)
-            c = count
-            work[OVERLAP * CAP + c] = overlap
-            work[LEVER_I * CAP + c] = lever_i
-            work[LEVER_J * CAP + c] = lever_j
-            work[R_EFF * CAP + c] = r_eff
-            work[M_EFF * CAP + c] = m_eff
-            work[NX * CAP + c] = nx
-            work[NY * CAP + c] = ny
-            work[NZ * CAP + c] = nz
-            for d in range(3):
-                work[(DVX + d) * CAP + c] = velocities[i, d] - velocities[j, d]
-                work[(WX + d) * CAP + c] = lever_i * angular_velocities[i, d] \
-                    + lever_j * angular_velocities[j, d]
-                work[(DWX + d) * CAP + c] = angular_velocities[i, d] - angular_velocities[j, d]
-            if params.shape[0] > 1:            # one material: rows filled once (law_loop)
-                b = materials[j]
-                for col in range(params.shape[2]):
-                    work[(PARAMS + col) * CAP + c] = params[a, b, col]
-            for h in range(history.shape[1]):
-                work[(HISTORY + h) * CAP + c] = history[k, h]
-            slots[0, c] = k
-            slots[1, c] = i
-            slots[2, c] = j
-            count += 1
+            dx, dy, dz = separation(j, xi, yi, zi, positions, px, py, pz, lx, ly, lz)
+            r_j = radii[j]
+            rsum = r_i + r_j
+            touching = dx * dx + dy * dy + dz * dz < rsum * rsum
+            if dirty[k] > int(touching):     # open, and perhaps not cleared yet
+                dissipated_t += _opened(model, params, a, materials[j], r_i * r_j / rsum,
+                                        history, pair_force, pair_torque_j, k)
+            dirty[k] = touching
+            work[NX * CAP + count] = dx
+            work[NY * CAP + count] = dy
+            work[NZ * CAP + count] = dz
+            slots[0, count] = k
+            slots[1, count] = i
+            slots[2, count] = j
+            count += touching
             if count == CAP:
-                dn, dt_ = _flush(law, work, count, slots, hi, history, pair_force, own,
-                                 pair_torque_j, dt)
+                dn, dt_ = _flush(law, work, count, slots, hi, params, velocities,
+                                 angular_velocities, radii, masses, materials, fixed, history,
+                                 pair_force, own, pair_torque_j, max_overlap, dt)
                 dissipated_n += dn
                 dissipated_t += dt_
                 count = 0
-        max_overlap[i] = worst
     if count > 0:
-        dn, dt_ = _flush(law, work, count, slots, hi, history, pair_force, own, pair_torque_j,
-                         dt)
+        dn, dt_ = _flush(law, work, count, slots, hi, params, velocities, angular_velocities,
+                         radii, masses, materials, fixed, history, pair_force, own,
+                         pair_torque_j, max_overlap, dt)
         dissipated_n += dn
         dissipated_t += dt_
     return dissipated_n, dissipated_t
