@@ -60,8 +60,8 @@ def main(argv):
     def t_walls(reps, model, params, law, clock, g, w, p, pairs, counters, history, scratch):
         s = 0.0
         for _ in range(reps):
-            s += wall_forces(model, params, g[0], g[1], g[2], g[8], g[9], g[11], w[0], w[1],
-                             w[5], w[6], w[7], w[10], w[11], w[12], w[16], w[17], g[14],
+            s += wall_forces(model, params, law, g[0], g[1], g[2], g[8], g[9], g[11], w[0],
+                             w[1], w[5], w[6], w[7], w[10], w[11], w[12], w[16], w[17], g[14],
                              clock[loop.DT], scratch.size)[0]
         return s
 

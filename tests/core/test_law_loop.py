@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import graindyn as gd
-from graindyn.core.contacts import pair_forces, pair_row
+from graindyn.core.contacts import pair_forces, pair_row, wall_forces, wall_row
 from graindyn.core.law_loop import prepare, workspace
 
 MODELS = [("hertz", "tsuji", "mindlin"), ("hooke", "linear", "cundall_strack"),
@@ -32,7 +32,7 @@ def one_by_one(model, params, g, periodic, p, dt):
                  periodic[2], p[0], p[1], p[2], p[8], p[9], p[10], g[14], dt)
 
 
-def bed(model):
+def bed(model, walls=()):
     rng = np.random.default_rng(3)
     pos = rng.uniform(0.0, 6e-3, (400, 3))
     state = gd.State.create(pos, rng.uniform(0.4e-3, 0.7e-3, 400), 2650.0,
@@ -40,13 +40,20 @@ def bed(model):
     state.velocities[:] = rng.normal(scale=0.1, size=(400, 3))
     state.angular_velocities[:] = rng.normal(scale=50.0, size=(400, 3))
     materials = [gd.Material(**MATERIAL), gd.Material(**dict(MATERIAL, youngs_modulus=3e7))]
-    sim = gd.Simulation(state, materials, gd.ContactModel(*model), dt=1e-7,
+    sim = gd.Simulation(state, materials, gd.ContactModel(*model), walls=walls, dt=1e-7,
                         allow_large_dt=True, overlap_limit=10.0)
     sim.run(steps=1)
     m = int(sim.pairs[0][-1])
     sim.pairs[2][:m] = rng.normal(scale=1e-6, size=sim.pairs[2][:m].shape) \
         * (rng.random((m, 1)) < 0.6)
     return sim
+
+
+@numba.njit
+def walls_one_by_one(model, params, g, w, dt):
+    for i in range(g[0].shape[0]):
+        wall_row(i, model, params, g[0], g[1], g[2], g[8], g[9], g[11], w[0], w[1], w[5],
+                 w[6], w[7], w[10], w[11], w[12], w[16], w[17], g[14], dt)
 
 
 def totals(sim, own, force, torque_j, nblock):
@@ -120,3 +127,31 @@ def test_open_pair_with_only_a_stale_torque_is_cleared(one_thread):
                 g[12], per[0], per[2], p[0], p[1], p[2], p[8], p[9], p[10], g[14], 1e-7,
                 nblock)
     assert np.all(p[10][k] == 0.0)
+
+
+@pytest.mark.parametrize("model", MODELS[:3], ids=lambda m: ",".join(m))
+def test_batched_walls_equal_contact_by_contact(model, one_thread):
+    """The wall contacts through the same law loop (contacts._wall_block) against
+    wall_row, one contact after the other: forces, torques and histories to the bit,
+    several batches, walls moving, two materials (the walls of the second)."""
+    walls = gd.box((0.0, 0.0, 0.0), (6e-3, 6e-3, 6e-3), material=1)
+    sim = bed(model, walls)
+    sim.walls.velocity[:] = np.random.default_rng(5).normal(scale=0.05,
+                                                            size=sim.walls.velocity.shape)
+    g, w = sim._grains(), sim._walls()
+    m = int(w[10][-1])
+    w[12][:m] = np.random.default_rng(4).normal(scale=1e-6, size=w[12][:m].shape)
+    saved = [a.copy() for a in (w[12], w[16], w[17], g[14])]
+    touching = len(sim.wall_contacts_active()[0])
+    assert touching > 150               # two batches and more
+    wall_forces(sim.model_ids, sim.params, sim._law, g[0], g[1], g[2], g[8], g[9], g[11],
+                w[0], w[1], w[5], w[6], w[7], w[10], w[11], w[12], w[16], w[17], g[14], 1e-7,
+                sim.block_scratch.size)
+    batched = [a.copy() for a in (w[12], w[16], w[17], g[14])]
+    for a, b in zip((w[12], w[16], w[17], g[14]), saved):
+        a[...] = b
+    walls_one_by_one(sim.model_ids, sim.params, g, w, 1e-7)
+    for name, a, b in zip(("history", "force", "torque", "max_overlap"), batched,
+                          (w[12], w[16], w[17], g[14])):
+        assert np.array_equal(a, b), name
+    assert np.count_nonzero(w[16]) > 0

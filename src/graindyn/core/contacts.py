@@ -198,6 +198,36 @@ def pair_row(i, model, params, positions, velocities, angular_velocities, radii,
 
 
 @scalar
+def _stage(work, c, params, a, b, history, k, overlap, lever_i, lever_j, r_eff, m_eff, nx, ny,
+           nz, dvx, dvy, dvz, wx, wy, wz, dwx, dwy, dwz):
+    """Column c of the workspace: the inputs of contact_response for contact k between
+    materials a and b, its pair-table row (with several materials: with one, the rows
+    are filled once, law_loop.prepare) and its history."""
+    work[OVERLAP * CAP + c] = overlap
+    work[LEVER_I * CAP + c] = lever_i
+    work[LEVER_J * CAP + c] = lever_j
+    work[R_EFF * CAP + c] = r_eff
+    work[M_EFF * CAP + c] = m_eff
+    work[NX * CAP + c] = nx
+    work[NY * CAP + c] = ny
+    work[NZ * CAP + c] = nz
+    work[DVX * CAP + c] = dvx
+    work[(DVX + 1) * CAP + c] = dvy
+    work[(DVX + 2) * CAP + c] = dvz
+    work[WX * CAP + c] = wx
+    work[(WX + 1) * CAP + c] = wy
+    work[(WX + 2) * CAP + c] = wz
+    work[DWX * CAP + c] = dwx
+    work[(DWX + 1) * CAP + c] = dwy
+    work[(DWX + 2) * CAP + c] = dwz
+    if params.shape[0] > 1:
+        for col in range(params.shape[2]):
+            work[(PARAMS + col) * CAP + c] = params[a, b, col]
+    for h in range(history.shape[1]):
+        work[(HISTORY + h) * CAP + c] = history[k, h]
+
+
+@scalar
 def _fill(count, work, slots, params, velocities, angular_velocities, radii, masses,
           materials, fixed, history, max_overlap):
     """Complete the contacts 0..count-1 gathered in ``work`` (their separations in rows
@@ -212,26 +242,15 @@ def _fill(count, work, slots, params, velocities, angular_velocities, radii, mas
             i, j, work[NX * CAP + c], work[NY * CAP + c], work[NZ * CAP + c], radii[i],
             radii[j], masses[i], masses, fixed)
         max_overlap[i] = max(max_overlap[i], ratio)
-        work[OVERLAP * CAP + c] = overlap
-        work[LEVER_I * CAP + c] = lever_i
-        work[LEVER_J * CAP + c] = lever_j
-        work[R_EFF * CAP + c] = r_eff
-        work[M_EFF * CAP + c] = m_eff
-        work[NX * CAP + c] = nx
-        work[NY * CAP + c] = ny
-        work[NZ * CAP + c] = nz
-        for d in range(3):
-            work[(DVX + d) * CAP + c] = velocities[i, d] - velocities[j, d]
-            work[(WX + d) * CAP + c] = lever_i * angular_velocities[i, d] \
-                + lever_j * angular_velocities[j, d]
-            work[(DWX + d) * CAP + c] = angular_velocities[i, d] - angular_velocities[j, d]
-        if params.shape[0] > 1:            # one material: rows filled once (law_loop)
-            a = materials[i]
-            b = materials[j]
-            for col in range(params.shape[2]):
-                work[(PARAMS + col) * CAP + c] = params[a, b, col]
-        for h in range(history.shape[1]):
-            work[(HISTORY + h) * CAP + c] = history[k, h]
+        _stage(work, c, params, materials[i], materials[j], history, k, overlap, lever_i,
+               lever_j, r_eff, m_eff, nx, ny, nz, velocities[i, 0] - velocities[j, 0],
+               velocities[i, 1] - velocities[j, 1], velocities[i, 2] - velocities[j, 2],
+               lever_i * angular_velocities[i, 0] + lever_j * angular_velocities[j, 0],
+               lever_i * angular_velocities[i, 1] + lever_j * angular_velocities[j, 1],
+               lever_i * angular_velocities[i, 2] + lever_j * angular_velocities[j, 2],
+               angular_velocities[i, 0] - angular_velocities[j, 0],
+               angular_velocities[i, 1] - angular_velocities[j, 1],
+               angular_velocities[i, 2] - angular_velocities[j, 2])
 
 
 @scalar
@@ -394,42 +413,96 @@ def wall_row(i, model, params, positions, velocities, angular_velocities, radii,
     return dissipated_n, dissipated_t
 
 
+@scalar
+def _flush_walls(law, work, count, slots, wall_history, wall_force, wall_torque, dt):
+    """Evaluate the law on the ``count`` wall contacts gathered in ``work`` and store
+    their forces, torques and histories; returns the normal and tangential energy
+    dissipated [J]."""
+    call_law(law, work, count, dt)
+    lost_n = 0.0
+    lost_t = 0.0
+    for s in range(count):
+        q = slots[0, s]
+        for d in range(3):
+            wall_force[q, d] = work[(OUTPUT + d) * CAP + s]
+            wall_torque[q, d] = work[(OUTPUT + 3 + d) * CAP + s]
+        for h in range(wall_history.shape[1]):
+            wall_history[q, h] = work[(HISTORY + h) * CAP + s]
+        lost_n += work[(OUTPUT + 9) * CAP + s]
+        lost_t += work[(OUTPUT + 10) * CAP + s]
+    return lost_n, lost_t
+
+
 @block
-def _wall_block(lo, hi, model, params, positions, velocities, angular_velocities, radii,
-                masses, materials, wall_kind, wall_geometry, wall_offset, wall_velocity,
-                wall_material, wall_start, wall_ids, wall_history, wall_force, wall_torque,
-                max_overlap, dt):
-    """wall_row for grains lo..hi-1 (as _pair_block); returns the energies."""
+def _wall_block(lo, hi, law, work, slots, model, params, positions, velocities,
+                angular_velocities, radii, masses, materials, wall_kind, wall_geometry,
+                wall_offset, wall_velocity, wall_material, wall_start, wall_ids, wall_history,
+                wall_force, wall_torque, max_overlap, dt):
+    """The wall contacts of grains lo..hi-1 (as wall_row, to the bit): the touching ones
+    gathered CAP at a time into ``work`` and evaluated by the law loop; returns the
+    energies."""
     dissipated_n = 0.0
     dissipated_t = 0.0
+    count = 0
     for i in range(lo, hi):
-        dn, dt_ = wall_row(i, model, params, positions, velocities, angular_velocities, radii,
-                           masses, materials, wall_kind, wall_geometry, wall_offset,
-                           wall_velocity, wall_material, wall_start, wall_ids, wall_history,
-                           wall_force, wall_torque, max_overlap, dt)
+        r_i = radii[i]
+        worst = max_overlap[i]
+        for q in range(wall_start[i], wall_start[i + 1]):
+            w = wall_ids[q]
+            dist, nx, ny, nz = wall_distance(wall_kind, wall_geometry, wall_offset, w,
+                                             positions[i, 0], positions[i, 1], positions[i, 2])
+            overlap = r_i - dist
+            if overlap <= 0.0:
+                dissipated_t += _release(model, params, materials[i], wall_material[w], r_i,
+                                         wall_history, wall_force, wall_torque, q)
+                continue
+            worst = max(worst, overlap / r_i)
+            lever = r_i - overlap
+            _stage(work, count, params, materials[i], wall_material[w], wall_history, q,
+                   overlap, lever, 0.0, r_i, masses[i], nx, ny, nz,
+                   velocities[i, 0] - wall_velocity[w, 0],
+                   velocities[i, 1] - wall_velocity[w, 1],
+                   velocities[i, 2] - wall_velocity[w, 2], lever * angular_velocities[i, 0],
+                   lever * angular_velocities[i, 1], lever * angular_velocities[i, 2],
+                   angular_velocities[i, 0], angular_velocities[i, 1],
+                   angular_velocities[i, 2])
+            slots[0, count] = q
+            count += 1
+            if count == CAP:
+                dn, dt_ = _flush_walls(law, work, count, slots, wall_history, wall_force,
+                                       wall_torque, dt)
+                dissipated_n += dn
+                dissipated_t += dt_
+                count = 0
+        max_overlap[i] = worst
+    if count > 0:
+        dn, dt_ = _flush_walls(law, work, count, slots, wall_history, wall_force, wall_torque,
+                               dt)
         dissipated_n += dn
         dissipated_t += dt_
     return dissipated_n, dissipated_t
 
 
 @parallel
-def wall_forces(model, params, positions, velocities, angular_velocities, radii, masses,
+def wall_forces(model, params, law, positions, velocities, angular_velocities, radii, masses,
                 materials, wall_kind, wall_geometry, wall_offset, wall_velocity, wall_material,
                 wall_start, wall_ids, wall_history, wall_force, wall_torque, max_overlap, dt,
                 nblock):
-    """Forces of the walls on grains, per grain-wall candidate (R_j = infinity).
+    """Forces of the walls on grains, per grain-wall candidate (R_j = infinity), batched
+    through the law loop as the pairs are (law as in pair_forces).
 
     Returns the energies dissipated in the step, normal and tangential [J] (summed as in
     pair_forces).
     """
     n = positions.shape[0]
+    address, work, slots, dirty = law
     sums = np.zeros((nblock, 2))
     for b in prange(nblock):
         sums[b, 0], sums[b, 1] = _wall_block(
-            b * n // nblock, (b + 1) * n // nblock, model, params, positions, velocities,
-            angular_velocities, radii, masses, materials, wall_kind, wall_geometry,
-            wall_offset, wall_velocity, wall_material, wall_start, wall_ids, wall_history,
-            wall_force, wall_torque, max_overlap, dt)
+            b * n // nblock, (b + 1) * n // nblock, address, work[b], slots[b], model, params,
+            positions, velocities, angular_velocities, radii, masses, materials, wall_kind,
+            wall_geometry, wall_offset, wall_velocity, wall_material, wall_start, wall_ids,
+            wall_history, wall_force, wall_torque, max_overlap, dt)
     return _block_total(sums)
 
 

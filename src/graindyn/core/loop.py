@@ -69,7 +69,7 @@ def evaluate_forces(model, params, law, grains, pairs, walls, periodic, gravity,
     dn, dt_ = pair_forces(model, params, law, positions, velocities, angular_velocities, radii,
                           masses, materials, fixed, flag, length, start, partners, history,
                           pair_force, own, pair_torque_j, max_overlap, dt, nblock)
-    wn, wt = wall_forces(model, params, positions, velocities, angular_velocities, radii,
+    wn, wt = wall_forces(model, params, law, positions, velocities, angular_velocities, radii,
                          masses, materials, kind, geometry, offset, velocity, material,
                          wall_start, wall_ids, wall_history, contact_force, contact_torque,
                          max_overlap, dt, nblock)
