@@ -395,9 +395,9 @@ def test_same_run_twice_is_bit_identical():
     for name in ("positions", "velocities", "angular_velocities", "orientations"):
         np.testing.assert_array_equal(getattr(a.state, name), getattr(b.state, name))
     assert a.dissipated == b.dissipated
-    # every grain sums its own contacts in a fixed order, so the trajectory does not
-    # depend on the thread count either; only the energy totals, summed by blocks of
-    # grains, may differ in their last digits
+    # on another thread count the grains are cut into other blocks, which changes the
+    # association of the force sums on a grain (contacts._pair_block) and of the energy
+    # totals: the same trajectory up to rounding
     if numba.config.NUMBA_NUM_THREADS >= 2:
         before = numba.get_num_threads()
         numba.set_num_threads(2)
@@ -406,7 +406,9 @@ def test_same_run_twice_is_bit_identical():
         finally:
             numba.set_num_threads(before)
         for name in ("positions", "velocities", "angular_velocities", "orientations"):
-            np.testing.assert_array_equal(getattr(a.state, name), getattr(c.state, name))
+            expected = getattr(a.state, name)
+            np.testing.assert_allclose(getattr(c.state, name), expected, rtol=1e-9,
+                                       atol=1e-12 * np.abs(expected).max())
         for kind in ("normal", "tangential"):
             assert c.dissipated[kind] == pytest.approx(a.dissipated[kind], rel=1e-12)
 
