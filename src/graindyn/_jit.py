@@ -7,7 +7,10 @@ reference counting); ``inlined`` for a large one called from several parallel lo
 compiled once and inlined by LLVM (IR-inlining it into each parfor body multiplied the
 compile time by three; LLVM inlining keeps all but about 3 % of the speed);
 ``kernel`` for serial array loops; ``parallel`` for loops over grains or contacts with
-``prange``; ``callback`` for C callbacks.  All are cached on disk (``cache=True``), so
+``prange``; ``block`` for the serial body of one block of a parallel loop (no reference
+counting), ``block_body`` for such a body LLVM-inlined into a block that calls it with
+constant arguments, so that the branches they decide fold away; ``callback`` for C
+callbacks.  All are cached on disk (``cache=True``), so
 importing graindyn compiles nothing and a warm start only loads the cache.
 ``error_model="numpy"`` makes division by zero give inf/nan as on the GPU instead of
 raising, and fastmath stays off so that results are reproducible across machines.
@@ -53,6 +56,7 @@ scalar = numba.njit(cache=True, error_model="numpy", inline="always")
 inlined = numba.njit(cache=True, error_model="numpy", forceinline=True)
 kernel = numba.njit(cache=True, error_model="numpy")
 block = numba.njit(cache=True, error_model="numpy", _nrt=False)
+block_body = numba.njit(cache=True, error_model="numpy", forceinline=True, _nrt=False)
 parallel = numba.njit(cache=True, error_model="numpy", parallel=True)
 prange = numba.prange
 

@@ -15,12 +15,13 @@ import math
 
 import numpy as np
 
-from ..._jit import block, parallel, prange, scalar
+from ..._jit import block, block_body, parallel, prange, scalar
 from ..contacts import gather_grain
 from ..neighbors import min_image
 from .beeman import beeman_correct, beeman_drift
 from .gear import gear_correct, gear_drift
-from .ids import BEEMAN, GEAR3, LEAP_FROG, OPTIMIZED_VELOCITY_VERLET, SLOTS
+from .ids import (BEEMAN, GEAR3, LEAP_FROG, OPTIMIZED_VELOCITY_VERLET, SLOTS,
+                  VELOCITY_VERLET)
 from .rotation import quaternion_leapfrog, rotate_quaternion
 from .verlet import verlet_correct, verlet_drift
 
@@ -141,19 +142,19 @@ def correct_grain(i, integrator, stage, dt, started, dim, f, forces, torques, ma
     return d2, v2, a2
 
 
-@block
-def _correct_block(lo, hi, integrator, stage, dt, started, dim, gravity, own, start,
-                   reverse_start, reverse_pairs, pair_force, pair_torque_j, wall_start,
-                   wall_force, wall_torque, forces, torques, masses, inertias, positions,
-                   reference_positions, velocities, angular_velocities, orientations,
-                   accelerations, angular_accelerations, fixed, periodic_flag,
-                   periodic_length, history, drift_next):
-    """gather_grain and correct_grain for grains lo..hi-1, compiled once as a serial
-    function, then, when ``drift_next``, the first drift of the next step (drift_grain,
-    stage 0: one pass over the grains' arrays instead of two); returns
-    max |r - r_ref| + max |v| dt + max |a| dt^2/2 over them before that drift [m]
-    (square roots once per block, not per grain).  The pairs listed by the block's
-    grains (from start[lo] on) are already in own (contacts._pair_block)."""
+@block_body
+def _correct_rows(lo, hi, integrator, stage, dt, started, dim, gravity, own, start,
+                  reverse_start, reverse_pairs, pair_force, pair_torque_j, wall_start,
+                  wall_force, wall_torque, forces, torques, masses, inertias, positions,
+                  reference_positions, velocities, angular_velocities, orientations,
+                  accelerations, angular_accelerations, fixed, periodic_flag,
+                  periodic_length, history, drift_next):
+    """gather_grain and correct_grain for grains lo..hi-1, then, when ``drift_next``,
+    the first drift of the next step (drift_grain, stage 0: one pass over the grains'
+    arrays instead of two); returns max |r - r_ref| + max |v| dt + max |a| dt^2/2 over
+    them before that drift [m] (square roots once per block, not per grain).  The
+    pairs listed by the block's grains (from start[lo] on) are already in own
+    (contacts._pair_block)."""
     owned_from = start[lo]
     top_d2 = 0.0
     top_v2 = 0.0
@@ -174,6 +175,33 @@ def _correct_block(lo, hi, integrator, stage, dt, started, dim, gravity, own, st
         top_v2 = max(top_v2, v2)
         top_a2 = max(top_a2, a2)
     return math.sqrt(top_d2) + math.sqrt(top_v2) * dt + 0.5 * math.sqrt(top_a2) * dt * dt
+
+
+@block
+def _correct_block(lo, hi, integrator, stage, dt, started, dim, gravity, own, start,
+                   reverse_start, reverse_pairs, pair_force, pair_torque_j, wall_start,
+                   wall_force, wall_torque, forces, torques, masses, inertias, positions,
+                   reference_positions, velocities, angular_velocities, orientations,
+                   accelerations, angular_accelerations, fixed, periodic_flag,
+                   periodic_length, history, drift_next):
+    """_correct_rows, compiled once as a serial function.  Velocity Verlet in 3D (the
+    default scheme) gets its own copy, in which the integrator, its single stage and
+    the dimension are constants: the dispatch on them folds away (about 40 us of the
+    330 us of this pass on a 10 000-grain bed, one thread)."""
+    if integrator == VELOCITY_VERLET and dim == 3:
+        return _correct_rows(lo, hi, VELOCITY_VERLET, 0, dt, started, 3, gravity, own, start,
+                             reverse_start, reverse_pairs, pair_force, pair_torque_j,
+                             wall_start, wall_force, wall_torque, forces, torques, masses,
+                             inertias, positions, reference_positions, velocities,
+                             angular_velocities, orientations, accelerations,
+                             angular_accelerations, fixed, periodic_flag, periodic_length,
+                             history, drift_next)
+    return _correct_rows(lo, hi, integrator, stage, dt, started, dim, gravity, own, start,
+                         reverse_start, reverse_pairs, pair_force, pair_torque_j, wall_start,
+                         wall_force, wall_torque, forces, torques, masses, inertias,
+                         positions, reference_positions, velocities, angular_velocities,
+                         orientations, accelerations, angular_accelerations, fixed,
+                         periodic_flag, periodic_length, history, drift_next)
 
 
 @parallel
