@@ -223,6 +223,14 @@ def after_force(integrator, stage, dt, started, dim, gravity, pairs, wall_start,
      reverse_start, reverse_pairs, pair_force, own, pair_torque_j) = pairs
     n = masses.size
     nblock = block_scratch.size
+    if nblock == 1:                  # no parallel region to enter (a few us per call)
+        block_scratch[0] = _correct_block(
+            0, n, integrator, stage, dt, started, dim, gravity, own, start, reverse_start,
+            reverse_pairs, pair_force, pair_torque_j, wall_start, wall_force, wall_torque,
+            forces, torques, masses, inertias, positions, reference_positions, velocities,
+            angular_velocities, orientations, accelerations, angular_accelerations, fixed,
+            periodic_flag, periodic_length, history, drift_next)
+        return block_scratch[0]
     for b in prange(nblock):
         block_scratch[b] = _correct_block(
             b * n // nblock, (b + 1) * n // nblock, integrator, stage, dt, started, dim,
