@@ -518,9 +518,13 @@ def wall_forces(model, params, law, positions, velocities, angular_velocities, r
 
 def block_count(n, threads):
     """Number of fixed blocks of grains the passes hand to threads: one per thread at
-    least, about 2048 grains each, at most MAX_BLOCKS.  Each block is one call of a
-    compiled function, so small systems get few.  The blocks depend only on n and the
-    thread count, so sums over them are the same from run to run."""
+    least, about 2048 grains each, at most MAX_BLOCKS; a single block on one thread
+    (no parallel region is entered, and every pair is added to both its grains as it
+    is computed).  Each block is one call of a compiled function, so small systems get
+    few.  The blocks depend only on n and the thread count, so sums over them are the
+    same from run to run."""
+    if threads == 1:
+        return 1
     return max(1, min(MAX_BLOCKS, max(threads, n // 2048)))
 
 
