@@ -364,11 +364,11 @@ def pair_forces(model, params, law, positions, velocities, angular_velocities, r
     """
     n = positions.shape[0]
     address, work, slots, dirty = law
-    if nblock == 1:                  # no parallel region to enter (a few us per call)
-        return _pair_block(0, n, address, work[0], slots[0], dirty, model, params, positions,
-                           velocities, angular_velocities, radii, masses, materials, fixed,
-                           periodic_flag, periodic_length, start, partners, history,
-                           pair_force, own, pair_torque_j, max_overlap, dt)
+    if nblock == 1:    # no parallel region to enter (a few us per call); a plain int64 0
+        return _pair_block(np.int64(0), n, address, work[0], slots[0], dirty, model, params,
+                           positions, velocities, angular_velocities, radii, masses,
+                           materials, fixed, periodic_flag, periodic_length, start, partners,
+                           history, pair_force, own, pair_torque_j, max_overlap, dt)
     sums = np.zeros((nblock, 2))
     for b in prange(nblock):
         sums[b, 0], sums[b, 1] = _pair_block(
@@ -501,11 +501,11 @@ def wall_forces(model, params, law, positions, velocities, angular_velocities, r
     n = positions.shape[0]
     address, work, slots, dirty = law
     if nblock == 1:                  # as in pair_forces
-        return _wall_block(0, n, address, work[0], slots[0], model, params, positions,
-                           velocities, angular_velocities, radii, masses, materials, wall_kind,
-                           wall_geometry, wall_offset, wall_velocity, wall_material,
-                           wall_start, wall_ids, wall_history, wall_force, wall_torque,
-                           max_overlap, dt)
+        return _wall_block(np.int64(0), n, address, work[0], slots[0], model, params,
+                           positions, velocities, angular_velocities, radii, masses,
+                           materials, wall_kind, wall_geometry, wall_offset, wall_velocity,
+                           wall_material, wall_start, wall_ids, wall_history, wall_force,
+                           wall_torque, max_overlap, dt)
     sums = np.zeros((nblock, 2))
     for b in prange(nblock):
         sums[b, 0], sums[b, 1] = _wall_block(

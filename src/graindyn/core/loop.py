@@ -246,10 +246,11 @@ def run_chunk(model, params, law, grains, pairs, walls, periodic, clock, counter
                 return status, s
             evaluate_forces(model, params, law, grains, pairs, walls, periodic, gravity, 0.0,
                             block_scratch.size)
-            # stage as a plain int64: a literal 0 would compile the pass a second time
+            # stage and drift_next as a plain int64 and bool: literals would compile the
+            # pass a second time
             clock[MOVE] = _after(integrator, np.int64(0), 0.0, counters, gravity, grains,
                                  pairs, walls, periodic, integrator_history, block_scratch,
-                                 False)
+                                 s < 0)
             counters[PRIMED] = 1
             # grains that start too deep in each other or in a wall: stop before moving
             if max_overlap.size > 0 and max_overlap.max() > clock[OVERLAP_LIMIT]:

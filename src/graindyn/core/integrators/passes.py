@@ -189,13 +189,15 @@ def _correct_block(lo, hi, integrator, stage, dt, started, dim, gravity, own, st
     the dimension are constants: the dispatch on them folds away (about 40 us of the
     330 us of this pass on a 10 000-grain bed, one thread)."""
     if integrator == VELOCITY_VERLET and dim == 3:
-        return _correct_rows(lo, hi, VELOCITY_VERLET, 0, dt, started, 3, gravity, own, start,
-                             reverse_start, reverse_pairs, pair_force, pair_torque_j,
-                             wall_start, wall_force, wall_torque, forces, torques, masses,
-                             inertias, positions, reference_positions, velocities,
-                             angular_velocities, orientations, accelerations,
-                             angular_accelerations, fixed, periodic_flag, periodic_length,
-                             history, drift_next)
+        # constants typed as the generic call's (no second compile of _correct_rows):
+        # LLVM folds them after inlining
+        return _correct_rows(lo, hi, np.int64(VELOCITY_VERLET), np.int64(0), dt, started,
+                             np.int64(3), gravity, own, start, reverse_start, reverse_pairs,
+                             pair_force, pair_torque_j, wall_start, wall_force, wall_torque,
+                             forces, torques, masses, inertias, positions,
+                             reference_positions, velocities, angular_velocities,
+                             orientations, accelerations, angular_accelerations, fixed,
+                             periodic_flag, periodic_length, history, drift_next)
     return _correct_rows(lo, hi, integrator, stage, dt, started, dim, gravity, own, start,
                          reverse_start, reverse_pairs, pair_force, pair_torque_j, wall_start,
                          wall_force, wall_torque, forces, torques, masses, inertias,
@@ -223,13 +225,13 @@ def after_force(integrator, stage, dt, started, dim, gravity, pairs, wall_start,
      reverse_start, reverse_pairs, pair_force, own, pair_torque_j) = pairs
     n = masses.size
     nblock = block_scratch.size
-    if nblock == 1:                  # no parallel region to enter (a few us per call)
+    if nblock == 1:    # no parallel region to enter (a few us per call); a plain int64 0
         block_scratch[0] = _correct_block(
-            0, n, integrator, stage, dt, started, dim, gravity, own, start, reverse_start,
-            reverse_pairs, pair_force, pair_torque_j, wall_start, wall_force, wall_torque,
-            forces, torques, masses, inertias, positions, reference_positions, velocities,
-            angular_velocities, orientations, accelerations, angular_accelerations, fixed,
-            periodic_flag, periodic_length, history, drift_next)
+            np.int64(0), n, integrator, stage, dt, started, dim, gravity, own, start,
+            reverse_start, reverse_pairs, pair_force, pair_torque_j, wall_start, wall_force,
+            wall_torque, forces, torques, masses, inertias, positions, reference_positions,
+            velocities, angular_velocities, orientations, accelerations, angular_accelerations,
+            fixed, periodic_flag, periodic_length, history, drift_next)
         return block_scratch[0]
     for b in prange(nblock):
         block_scratch[b] = _correct_block(
