@@ -560,9 +560,10 @@ def gather_grain(i, mass, gravity, own, reverse_start, reverse_pairs, owned_from
     tz = own[i, 5]
     for s in range(reverse_start[i], reverse_start[i + 1]):
         k = reverse_pairs[s]
-        if k < owned_from:
-            fx, fy, fz, tx, ty, tz = _add_contact(fx, fy, fz, tx, ty, tz, pair_force, -1.0,
-                                                  pair_torque_j, k)
+        if k >= owned_from:                # listed in k order (neighbors._reverse)
+            break
+        fx, fy, fz, tx, ty, tz = _add_contact(fx, fy, fz, tx, ty, tz, pair_force, -1.0,
+                                              pair_torque_j, k)
     for q in range(wall_start[i], wall_start[i + 1]):
         fx, fy, fz, tx, ty, tz = _add_contact(fx, fy, fz, tx, ty, tz, wall_force, 1.0,
                                               wall_torque, q)
