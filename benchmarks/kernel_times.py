@@ -75,22 +75,20 @@ def main(argv):
         return s
 
     @numba.njit
-    def t_after(reps, model, params, law, clock, g, w, p, pairs, counters, history, scratch):
+    def t_correct(reps, drift_next, model, params, law, clock, g, w, p, pairs, counters,
+                  history, scratch):
         s = 0.0
         for _ in range(reps):
             s += loop._after(counters[loop.INTEGRATOR], np.int64(0), clock[loop.DT], counters,
                              clock[loop.GX:loop.GZ + 1], g, pairs, w, p, history, scratch,
-                             False)
+                             drift_next)
         return s
 
-    @numba.njit
-    def t_fused(reps, model, params, law, clock, g, w, p, pairs, counters, history, scratch):
-        s = 0.0
-        for _ in range(reps):
-            s += loop._after(counters[loop.INTEGRATOR], np.int64(0), clock[loop.DT], counters,
-                             clock[loop.GX:loop.GZ + 1], g, pairs, w, p, history, scratch,
-                             True)
-        return s
+    def t_after(reps, *args):
+        return t_correct(reps, False, *args)
+
+    def t_fused(reps, *args):
+        return t_correct(reps, True, *args)
 
     def t_step(reps, *args):
         sim.run(steps=reps)

@@ -380,6 +380,23 @@ def pair_forces(model, params, law, positions, velocities, angular_velocities, r
 
 
 @scalar
+def wall_gap(i, q, model, params, positions, radii, materials, wall_kind, wall_geometry,
+             wall_offset, wall_material, wall_ids, wall_history, wall_force, wall_torque):
+    """Wall contact q of grain i: (overlap [m], unit normal (3) from the wall to the
+    grain, energy [J] lost with the history of a contact found open: overlap <= 0, whose
+    rows are then zeroed, _release)."""
+    w = wall_ids[q]
+    dist, nx, ny, nz = wall_distance(wall_kind, wall_geometry, wall_offset, w,
+                                     positions[i, 0], positions[i, 1], positions[i, 2])
+    overlap = radii[i] - dist
+    lost = 0.0
+    if overlap <= 0.0:
+        lost = _release(model, params, materials[i], wall_material[w], radii[i], wall_history,
+                        wall_force, wall_torque, q)
+    return overlap, nx, ny, nz, lost
+
+
+@scalar
 def wall_row(i, model, params, positions, velocities, angular_velocities, radii, masses,
              materials, wall_kind, wall_geometry, wall_offset, wall_velocity, wall_material,
              wall_start, wall_ids, wall_history, wall_force, wall_torque, max_overlap, dt):
@@ -388,16 +405,16 @@ def wall_row(i, model, params, positions, velocities, angular_velocities, radii,
     dissipated_n = 0.0
     dissipated_t = 0.0
     worst = max_overlap[i]
+    r_i = radii[i]
     for q in range(wall_start[i], wall_start[i + 1]):
-        w = wall_ids[q]
-        dist, nx, ny, nz = wall_distance(wall_kind, wall_geometry, wall_offset, w,
-                                         positions[i, 0], positions[i, 1], positions[i, 2])
-        r_i = radii[i]
-        overlap = r_i - dist
+        overlap, nx, ny, nz, lost = wall_gap(i, q, model, params, positions, radii, materials,
+                                             wall_kind, wall_geometry, wall_offset,
+                                             wall_material, wall_ids, wall_history, wall_force,
+                                             wall_torque)
         if overlap <= 0.0:
-            dissipated_t += _release(model, params, materials[i], wall_material[w], r_i,
-                                     wall_history, wall_force, wall_torque, q)
+            dissipated_t += lost
             continue
+        w = wall_ids[q]
         worst = max(worst, overlap / r_i)
         lever = r_i - overlap
         out = contact_response(
@@ -452,14 +469,13 @@ def _wall_block(lo, hi, law, work, slots, model, params, positions, velocities,
         r_i = radii[i]
         worst = max_overlap[i]
         for q in range(wall_start[i], wall_start[i + 1]):
-            w = wall_ids[q]
-            dist, nx, ny, nz = wall_distance(wall_kind, wall_geometry, wall_offset, w,
-                                             positions[i, 0], positions[i, 1], positions[i, 2])
-            overlap = r_i - dist
+            overlap, nx, ny, nz, lost = wall_gap(
+                i, q, model, params, positions, radii, materials, wall_kind, wall_geometry,
+                wall_offset, wall_material, wall_ids, wall_history, wall_force, wall_torque)
             if overlap <= 0.0:
-                dissipated_t += _release(model, params, materials[i], wall_material[w], r_i,
-                                         wall_history, wall_force, wall_torque, q)
+                dissipated_t += lost
                 continue
+            w = wall_ids[q]
             worst = max(worst, overlap / r_i)
             lever = r_i - overlap
             _stage(work, count, params, materials[i], wall_material[w], wall_history, q,
