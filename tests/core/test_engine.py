@@ -495,3 +495,31 @@ def test_2d_settling_stays_in_plane():
     sim.run(steps=4000, every=[(gd.Periodic(steps=200), check)])
     assert sim.dissipated["tangential"] > 0                # friction was active
     assert np.any(st.angular_velocities[:, 2] != 0.0)
+
+
+def test_growing_the_pair_lists_mid_step_changes_nothing():
+    """A collapsing bed outgrows short pair lists: the loop returns GROW after
+    the step's first drift, the arrays grow and the step resumes without drifting
+    again.  The rebuild is due at the same step as in a run with room to spare, so the
+    two runs agree to the bit."""
+    def column(capacity):
+        rng = np.random.default_rng(5)
+        grid = (np.arange(6) + 0.5) * 0.65e-3
+        pos = np.array([(x, y, z) for x in grid for y in grid for z in grid[:5]])
+        pos += rng.uniform(-0.04e-3, 0.04e-3, pos.shape)
+        st = gd.State.create(pos, np.full(len(pos), 0.25e-3), RHO)
+        sim = gd.Simulation(st, [gd.Material(density=RHO, restitution=0.5)],
+                            gd.ContactModel("hertz", "tsuji", "mindlin"),
+                            walls=gd.box((0, 0, 0), (3.9e-3, 3.9e-3, 10e-3)))
+        if capacity:
+            sim._allocate_pairs(capacity)
+        start = sim.pairs[1].size
+        sim.run(steps=10000)
+        return sim, sim.pairs[1].size > start
+
+    grown, did_grow = column(64)
+    roomy, roomy_grew = column(5000)
+    assert did_grow and not roomy_grew
+    assert grown.rebuilds == roomy.rebuilds
+    for name in ("positions", "velocities", "angular_velocities"):
+        np.testing.assert_array_equal(getattr(grown.state, name), getattr(roomy.state, name))
