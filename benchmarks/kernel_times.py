@@ -61,8 +61,8 @@ def main(argv):
         s = 0.0
         for _ in range(reps):
             s += wall_forces(model, params, law, g[0], g[1], g[2], g[8], g[9], g[11], w[0],
-                             w[1], w[5], w[6], w[7], w[10], w[11], w[12], w[16], w[17], g[14],
-                             clock[loop.DT], scratch.size)[0]
+                             w[1], w[5], w[6], w[7], w[10], w[11], w[12], w[16], w[17], pairs[9],
+                             g[14], clock[loop.DT], scratch.size)[0]
         return s
 
     @numba.njit
@@ -80,7 +80,7 @@ def main(argv):
         s = 0.0
         for _ in range(reps):
             s += loop._after(counters[loop.INTEGRATOR], np.int64(0), clock[loop.DT], counters,
-                             clock[loop.GX:loop.GZ + 1], g, pairs, w, p, history, scratch,
+                             clock[loop.GX:loop.GZ + 1], g, pairs, p, history, scratch,
                              drift_next)
         return s
 

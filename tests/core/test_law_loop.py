@@ -144,9 +144,12 @@ def test_batched_walls_equal_contact_by_contact(model, one_thread):
     saved = [a.copy() for a in (w[12], w[16], w[17], g[14])]
     touching = len(sim.wall_contacts_active()[0])
     assert touching > 150               # two batches and more
+    own = sim.pairs[9]
+    own[...] = np.random.default_rng(6).normal(size=own.shape)
+    own_before = own.copy()
     wall_forces(sim.model_ids, sim.params, sim._law, g[0], g[1], g[2], g[8], g[9], g[11],
-                w[0], w[1], w[5], w[6], w[7], w[10], w[11], w[12], w[16], w[17], g[14], 1e-7,
-                sim.block_scratch.size)
+                w[0], w[1], w[5], w[6], w[7], w[10], w[11], w[12], w[16], w[17], own, g[14],
+                1e-7, sim.block_scratch.size)
     batched = [a.copy() for a in (w[12], w[16], w[17], g[14])]
     for a, b in zip((w[12], w[16], w[17], g[14]), saved):
         a[...] = b
@@ -155,3 +158,9 @@ def test_batched_walls_equal_contact_by_contact(model, one_thread):
                           (w[12], w[16], w[17], g[14])):
         assert np.array_equal(a, b), name
     assert np.count_nonzero(w[16]) > 0
+    # and added to their grains' sums, after what was there
+    grain = np.repeat(np.arange(sim.state.n), np.diff(w[10]))
+    added = own_before.copy()
+    for q, i in enumerate(grain):
+        added[i] += np.concatenate((batched[1][q], batched[2][q]))
+    assert np.array_equal(own, added)

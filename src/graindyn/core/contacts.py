@@ -12,7 +12,8 @@ _pair_block); the GPU evaluates them one by one per grain (pair_row).  Both give
 same pair forces, to the bit.  The CPU's block also adds a pair's force and torque to
 its second grain's ``own`` when that grain is in the block (one thread owns the whole
 block), so the gather reads back only the pairs that cross blocks (``owned_from``);
-the GPU gathers every pair.  Only the order of the sums differs.
+its wall contacts are added to ``own`` too (wall_forces).  The GPU gathers every pair
+and every wall contact.  Only the order of the sums differs.
 
 Geometry (Oquendo Eq. 3-4): n = (r_i - r_j)/|r_i - r_j|, overlap h = R_i + R_j - |r_i - r_j|,
 the contact point sits at R'_i = R_i - h R_j/(R_i + R_j) from grain i, and the relative
@@ -24,8 +25,9 @@ import numpy as np
 
 from .._jit import block, inlined, parallel, prange, scalar
 from ..physics.contact import contact_force, contact_release
-from .law_loop import (CAP, DVX, DWX, HISTORY, LEVER_I, LEVER_J, M_EFF, NX, NY, NZ, OUTPUT,
-                       OVERLAP, PARAMS, R_EFF, WX, call_law)
+from .law_loop import (CAP, DVX, DWX, FIXED_I, FIXED_J, HISTORY, LEVER_I, LEVER_J, M_EFF, M_I,
+                       M_J, NX, NY, NZ, OUTPUT, OVERLAP, PARAMS, R_EFF, R_I, R_J, RATIO, WX,
+                       call_law)
 from .neighbors import min_image
 from .walls import wall_distance
 
@@ -86,20 +88,21 @@ def separation(j, xi, yi, zi, positions, px, py, pz, lx, ly, lz):
 
 
 @scalar
-def contact_geometry(i, j, dx, dy, dz, r_i, r_j, m_i, masses, fixed):
-    """Touching pair (i, j) with separation (dx, dy, dz) = r_i - r_j: (overlap [m],
-    overlap / smaller radius, lever_i, lever_j [m], R* [m], m* [kg], unit normal n (3)
-    from j to i)."""
+def contact_geometry(dx, dy, dz, r_i, r_j, m_i, m_j, fixed_i, fixed_j):
+    """Touching pair with separation (dx, dy, dz) = r_i - r_j [m], radii [m], masses
+    [kg] and fixed flags (non-zero: fixed): (overlap [m], overlap / smaller radius,
+    lever_i, lever_j [m], R* [m], m* [kg], unit normal n (3) from j to i).  Branches
+    the CPU's law loop evaluates in SIMD lanes (law_loop._law_rows)."""
     rsum = r_i + r_j
     dist = math.sqrt(dx * dx + dy * dy + dz * dz)
     inv = 1.0 / dist
     overlap = rsum - dist
-    if fixed[j]:
+    if fixed_j != 0:
         m_eff = m_i
-    elif fixed[i]:
-        m_eff = masses[j]
+    elif fixed_i != 0:
+        m_eff = m_j
     else:
-        m_eff = m_i * masses[j] / (m_i + masses[j])
+        m_eff = m_i * m_j / (m_i + m_j)
     inv_sum = 1.0 / rsum
     share = overlap * inv_sum
     return (overlap, overlap / min(r_i, r_j), r_i - share * r_j, r_j - share * r_i,
@@ -117,7 +120,7 @@ def pair_geometry(i, j, xi, yi, zi, r_i, m_i, positions, radii, masses, fixed, p
     if dx * dx + dy * dy + dz * dz >= rsum * rsum:
         return False, 0.0, 0.0, 0.0, 0.0, r_i * r_j / rsum, 0.0, 0.0, 0.0, 0.0
     overlap, ratio, lever_i, lever_j, r_eff, m_eff, nx, ny, nz = contact_geometry(
-        i, j, dx, dy, dz, r_i, r_j, m_i, masses, fixed)
+        dx, dy, dz, r_i, r_j, m_i, masses[j], fixed[i], fixed[j])
     return True, overlap, ratio, lever_i, lever_j, r_eff, m_eff, nx, ny, nz
 
 
@@ -198,11 +201,22 @@ def pair_row(i, model, params, positions, velocities, angular_velocities, radii,
 
 
 @scalar
+def _stage_table(work, c, params, a, b, history, k):
+    """Column c of the workspace: the pair-table row of materials a and b (with
+    several materials: with one, the rows are filled once, law_loop.prepare) and the
+    history of contact k."""
+    if params.shape[0] > 1:
+        for col in range(params.shape[2]):
+            work[(PARAMS + col) * CAP + c] = params[a, b, col]
+    for h in range(history.shape[1]):
+        work[(HISTORY + h) * CAP + c] = history[k, h]
+
+
+@scalar
 def _stage(work, c, params, a, b, history, k, overlap, lever_i, lever_j, r_eff, m_eff, nx, ny,
            nz, dvx, dvy, dvz, wx, wy, wz, dwx, dwy, dwz):
-    """Column c of the workspace: the inputs of contact_response for contact k between
-    materials a and b, its pair-table row (with several materials: with one, the rows
-    are filled once, law_loop.prepare) and its history."""
+    """Column c of the workspace: the inputs of contact_response for wall contact k
+    between materials a and b, and _stage_table."""
     work[OVERLAP * CAP + c] = overlap
     work[LEVER_I * CAP + c] = lever_i
     work[LEVER_J * CAP + c] = lever_j
@@ -220,37 +234,31 @@ def _stage(work, c, params, a, b, history, k, overlap, lever_i, lever_j, r_eff, 
     work[DWX * CAP + c] = dwx
     work[(DWX + 1) * CAP + c] = dwy
     work[(DWX + 2) * CAP + c] = dwz
-    if params.shape[0] > 1:
-        for col in range(params.shape[2]):
-            work[(PARAMS + col) * CAP + c] = params[a, b, col]
-    for h in range(history.shape[1]):
-        work[(HISTORY + h) * CAP + c] = history[k, h]
+    _stage_table(work, c, params, a, b, history, k)
 
 
 @scalar
 def _fill(count, work, slots, params, velocities, angular_velocities, radii, masses,
-          materials, fixed, history, max_overlap):
-    """Complete the contacts 0..count-1 gathered in ``work`` (their separations in rows
-    NX..NZ, their pair, first and second grain in ``slots``): geometry
-    (contact_geometry), velocities, pair-table row (with several materials) and history;
-    raises max_overlap of each first grain to its overlap / smaller radius."""
+          materials, fixed, history):
+    """Complete the pairs 0..count-1 gathered in ``work`` (their separations in rows
+    NX..NZ, their pair, first and second grain in ``slots``) with what the law loop
+    computes their geometry and law from: radii, masses, fixed flags, v_i - v_j, w_i
+    (rows WX..WZ), w_j (rows DWX..DWZ), pair-table row and history."""
     for c in range(count):
         k = slots[0, c]
         i = slots[1, c]
         j = slots[2, c]
-        overlap, ratio, lever_i, lever_j, r_eff, m_eff, nx, ny, nz = contact_geometry(
-            i, j, work[NX * CAP + c], work[NY * CAP + c], work[NZ * CAP + c], radii[i],
-            radii[j], masses[i], masses, fixed)
-        max_overlap[i] = max(max_overlap[i], ratio)
-        _stage(work, c, params, materials[i], materials[j], history, k, overlap, lever_i,
-               lever_j, r_eff, m_eff, nx, ny, nz, velocities[i, 0] - velocities[j, 0],
-               velocities[i, 1] - velocities[j, 1], velocities[i, 2] - velocities[j, 2],
-               lever_i * angular_velocities[i, 0] + lever_j * angular_velocities[j, 0],
-               lever_i * angular_velocities[i, 1] + lever_j * angular_velocities[j, 1],
-               lever_i * angular_velocities[i, 2] + lever_j * angular_velocities[j, 2],
-               angular_velocities[i, 0] - angular_velocities[j, 0],
-               angular_velocities[i, 1] - angular_velocities[j, 1],
-               angular_velocities[i, 2] - angular_velocities[j, 2])
+        work[R_I * CAP + c] = radii[i]
+        work[R_J * CAP + c] = radii[j]
+        work[M_I * CAP + c] = masses[i]
+        work[M_J * CAP + c] = masses[j]
+        work[FIXED_I * CAP + c] = fixed[i]
+        work[FIXED_J * CAP + c] = fixed[j]
+        for d in range(3):
+            work[(DVX + d) * CAP + c] = velocities[i, d] - velocities[j, d]
+            work[(WX + d) * CAP + c] = angular_velocities[i, d]
+            work[(DWX + d) * CAP + c] = angular_velocities[j, d]
+        _stage_table(work, c, params, materials[i], materials[j], history, k)
 
 
 @scalar
@@ -260,10 +268,11 @@ def _flush(law, work, count, slots, hi, params, velocities, angular_velocities, 
     (law_loop.py) and scatter them back in gathering order: forces, histories, and the
     sums on each grain of the block (grains below ``hi``); the torque on a second grain
     beyond the block is stored for the gather.  Returns the normal and tangential
-    energy dissipated [J]."""
+    energy dissipated [J]; raises max_overlap of each first grain to its overlap /
+    smaller radius."""
     _fill(count, work, slots, params, velocities, angular_velocities, radii, masses,
-          materials, fixed, history, max_overlap)
-    call_law(law, work, count, dt)
+          materials, fixed, history)
+    call_law(law, work, count, dt, np.int64(1))
     lost_n = 0.0
     lost_t = 0.0
     for s in range(count):
@@ -271,6 +280,7 @@ def _flush(law, work, count, slots, hi, params, velocities, angular_velocities, 
         i = slots[1, s]
         j = slots[2, s]
         inside = j < hi
+        max_overlap[i] = max(max_overlap[i], work[RATIO * CAP + s])
         for d in range(3):
             f = work[(OUTPUT + d) * CAP + s]
             torque_j = work[(OUTPUT + 6 + d) * CAP + s]
@@ -435,18 +445,23 @@ def wall_row(i, model, params, positions, velocities, angular_velocities, radii,
 
 
 @scalar
-def _flush_walls(law, work, count, slots, wall_history, wall_force, wall_torque, dt):
-    """Evaluate the law on the ``count`` wall contacts gathered in ``work`` and store
-    their forces, torques and histories; returns the normal and tangential energy
-    dissipated [J]."""
-    call_law(law, work, count, dt)
+def _flush_walls(law, work, count, slots, wall_history, wall_force, wall_torque, own, dt):
+    """Evaluate the law on the ``count`` wall contacts gathered in ``work``, store
+    their forces, torques and histories and add them to own (their grains are in the
+    block, slots[1]); returns the normal and tangential energy dissipated [J]."""
+    call_law(law, work, count, dt, np.int64(0))
     lost_n = 0.0
     lost_t = 0.0
     for s in range(count):
         q = slots[0, s]
+        i = slots[1, s]
         for d in range(3):
-            wall_force[q, d] = work[(OUTPUT + d) * CAP + s]
-            wall_torque[q, d] = work[(OUTPUT + 3 + d) * CAP + s]
+            f = work[(OUTPUT + d) * CAP + s]
+            torque = work[(OUTPUT + 3 + d) * CAP + s]
+            wall_force[q, d] = f
+            wall_torque[q, d] = torque
+            own[i, d] += f
+            own[i, 3 + d] += torque
         for h in range(wall_history.shape[1]):
             wall_history[q, h] = work[(HISTORY + h) * CAP + s]
         lost_n += work[(OUTPUT + 9) * CAP + s]
@@ -458,10 +473,10 @@ def _flush_walls(law, work, count, slots, wall_history, wall_force, wall_torque,
 def _wall_block(lo, hi, law, work, slots, model, params, positions, velocities,
                 angular_velocities, radii, masses, materials, wall_kind, wall_geometry,
                 wall_offset, wall_velocity, wall_material, wall_start, wall_ids, wall_history,
-                wall_force, wall_torque, max_overlap, dt):
+                wall_force, wall_torque, own, max_overlap, dt):
     """The wall contacts of grains lo..hi-1 (as wall_row, to the bit): the touching ones
-    gathered CAP at a time into ``work`` and evaluated by the law loop; returns the
-    energies."""
+    gathered CAP at a time into ``work`` and evaluated by the law loop, and added to
+    own; returns the energies."""
     dissipated_n = 0.0
     dissipated_t = 0.0
     count = 0
@@ -487,17 +502,18 @@ def _wall_block(lo, hi, law, work, slots, model, params, positions, velocities,
                    angular_velocities[i, 0], angular_velocities[i, 1],
                    angular_velocities[i, 2])
             slots[0, count] = q
+            slots[1, count] = i
             count += 1
             if count == CAP:
                 dn, dt_ = _flush_walls(law, work, count, slots, wall_history, wall_force,
-                                       wall_torque, dt)
+                                       wall_torque, own, dt)
                 dissipated_n += dn
                 dissipated_t += dt_
                 count = 0
         max_overlap[i] = worst
     if count > 0:
         dn, dt_ = _flush_walls(law, work, count, slots, wall_history, wall_force, wall_torque,
-                               dt)
+                               own, dt)
         dissipated_n += dn
         dissipated_t += dt_
     return dissipated_n, dissipated_t
@@ -506,10 +522,11 @@ def _wall_block(lo, hi, law, work, slots, model, params, positions, velocities,
 @parallel
 def wall_forces(model, params, law, positions, velocities, angular_velocities, radii, masses,
                 materials, wall_kind, wall_geometry, wall_offset, wall_velocity, wall_material,
-                wall_start, wall_ids, wall_history, wall_force, wall_torque, max_overlap, dt,
-                nblock):
+                wall_start, wall_ids, wall_history, wall_force, wall_torque, own, max_overlap,
+                dt, nblock):
     """Forces of the walls on grains, per grain-wall candidate (R_j = infinity), batched
-    through the law loop as the pairs are (law as in pair_forces).
+    through the law loop as the pairs are (law as in pair_forces), and added to own[i]
+    (6) after the pairs' (pair_forces runs first and zeroes it).
 
     Returns the energies dissipated in the step, normal and tangential [J] (summed as in
     pair_forces).
@@ -521,14 +538,14 @@ def wall_forces(model, params, law, positions, velocities, angular_velocities, r
                            positions, velocities, angular_velocities, radii, masses,
                            materials, wall_kind, wall_geometry, wall_offset, wall_velocity,
                            wall_material, wall_start, wall_ids, wall_history, wall_force,
-                           wall_torque, max_overlap, dt)
+                           wall_torque, own, max_overlap, dt)
     sums = np.zeros((nblock, 2))
     for b in prange(nblock):
         sums[b, 0], sums[b, 1] = _wall_block(
             b * n // nblock, (b + 1) * n // nblock, address, work[b], slots[b], model, params,
             positions, velocities, angular_velocities, radii, masses, materials, wall_kind,
             wall_geometry, wall_offset, wall_velocity, wall_material, wall_start, wall_ids,
-            wall_history, wall_force, wall_torque, max_overlap, dt)
+            wall_history, wall_force, wall_torque, own, max_overlap, dt)
     return _block_total(sums)
 
 
@@ -563,23 +580,36 @@ def _add_contact(fx, fy, fz, tx, ty, tz, force, sign, torque, k):
 
 
 @scalar
-def gather_grain(i, mass, gravity, own, reverse_start, reverse_pairs, owned_from,
-                 pair_force, pair_torque_j, wall_start, wall_force, wall_torque):
-    """Force [N] and torque [N m] on grain i: m_i g plus its pair contacts (own[i], then
-    one by one the pairs k < owned_from that list it: those from k = owned_from on are
-    already in own[i]) and its wall contacts, always in this order."""
+def gather_pairs(i, mass, gravity, own, reverse_start, reverse_pairs, owned_from, pair_force,
+                 pair_torque_j):
+    """Force [N] and torque [N m] on grain i from m_i g, own[i] and, one by one, the
+    pairs k < owned_from that list it (those from k = owned_from on are already in
+    own[i]), in this order.  The CPU's gather: own[i] holds the grain's wall contacts
+    too (wall_forces)."""
     fx = mass * gravity[0] + own[i, 0]
     fy = mass * gravity[1] + own[i, 1]
     fz = mass * gravity[2] + own[i, 2]
     tx = own[i, 3]
     ty = own[i, 4]
     tz = own[i, 5]
-    for s in range(reverse_start[i], reverse_start[i + 1]):
-        k = reverse_pairs[s]
-        if k >= owned_from:                # listed in k order (neighbors._reverse)
-            break
-        fx, fy, fz, tx, ty, tz = _add_contact(fx, fy, fz, tx, ty, tz, pair_force, -1.0,
-                                              pair_torque_j, k)
+    if owned_from > 0:       # else no pair can be below it: the first block on the CPU
+        for s in range(reverse_start[i], reverse_start[i + 1]):
+            k = reverse_pairs[s]
+            if k >= owned_from:                # listed in k order (neighbors._reverse)
+                break
+            fx, fy, fz, tx, ty, tz = _add_contact(fx, fy, fz, tx, ty, tz, pair_force, -1.0,
+                                                  pair_torque_j, k)
+    return fx, fy, fz, tx, ty, tz
+
+
+@scalar
+def gather_grain(i, mass, gravity, own, reverse_start, reverse_pairs, owned_from,
+                 pair_force, pair_torque_j, wall_start, wall_force, wall_torque):
+    """Force [N] and torque [N m] on grain i: gather_pairs, then its wall contacts one
+    by one (the GPU's gather: its own[i] holds only the pairs i lists)."""
+    fx, fy, fz, tx, ty, tz = gather_pairs(i, mass, gravity, own, reverse_start,
+                                          reverse_pairs, owned_from, pair_force,
+                                          pair_torque_j)
     for q in range(wall_start[i], wall_start[i + 1]):
         fx, fy, fz, tx, ty, tz = _add_contact(fx, fy, fz, tx, ty, tz, wall_force, 1.0,
                                               wall_torque, q)

@@ -31,16 +31,20 @@ from .._jit import callback, kernel, retarget, scalar
 from ..physics.registry import COL
 
 CAP = 64              # contacts per batch (workspace columns)
-# workspace rows: the inputs of contact_response, its 11 outputs, the pair-table
-# columns, the history values
+# workspace rows: the inputs of contact_response, the grain data a pair's geometry is
+# computed from, the 11 outputs of contact_response and the pair's overlap / smaller
+# radius (RATIO), the pair-table columns, the history values.  A pair (``pairs`` = 1)
+# stages its separation r_i - r_j in rows NX..NZ, w_i in WX..WZ and w_j in DWX..DWZ;
+# a wall contact stages contact_response's inputs themselves.
 (OVERLAP, LEVER_I, LEVER_J, R_EFF, M_EFF, NX, NY, NZ, DVX, DVY, DVZ, WX, WY, WZ, DWX, DWY,
- DWZ) = range(17)
-OUTPUT = 17
-PARAMS = OUTPUT + 11
+ DWZ, R_I, R_J, M_I, M_J, FIXED_I, FIXED_J) = range(23)
+OUTPUT = 23
+RATIO = OUTPUT + 11
+PARAMS = RATIO + 1
 HISTORY = PARAMS + len(COL)
 MAX_HISTORY = 32       # most history values a model may keep
 WORKSPACE = (HISTORY + MAX_HISTORY) * CAP
-SIGNATURE = types.void(types.CPointer(types.float64), types.int64, types.float64)
+SIGNATURE = types.void(types.CPointer(types.float64), types.int64, types.float64, types.int64)
 _LOOPS = {}
 
 
@@ -61,17 +65,51 @@ def workspace_prow(k, unused, col):
     return (PARAMS + col) * CAP + k
 
 
-def _law_rows(workspace, count, dt):
-    """The law for contacts 0..count-1 of the workspace (template: MODEL and
-    contact_response are set in each compiled copy)."""
+def _law_rows(workspace, count, dt, pairs):
+    """The law for contacts 0..count-1 of the workspace (template: MODEL,
+    contact_geometry and contact_response are set in each compiled copy); with
+    ``pairs``, the contact geometry first, in the same lanes (its square root and
+    divisions one contact at a time cost as much as the law's)."""
     w = carray(workspace, (WORKSPACE,))
     for m in range(count):
+        if pairs:
+            geometry = contact_geometry(  # noqa: F821
+                w[NX * CAP + m], w[NY * CAP + m], w[NZ * CAP + m], w[R_I * CAP + m],
+                w[R_J * CAP + m], w[M_I * CAP + m], w[M_J * CAP + m], w[FIXED_I * CAP + m],
+                w[FIXED_J * CAP + m])
+            overlap, ratio, lever_i, lever_j, r_eff, m_eff, nx, ny, nz = geometry
+            w[RATIO * CAP + m] = ratio
+            wix = w[WX * CAP + m]
+            wiy = w[WY * CAP + m]
+            wiz = w[WZ * CAP + m]
+            wjx = w[DWX * CAP + m]
+            wjy = w[DWY * CAP + m]
+            wjz = w[DWZ * CAP + m]
+            wx = lever_i * wix + lever_j * wjx
+            wy = lever_i * wiy + lever_j * wjy
+            wz = lever_i * wiz + lever_j * wjz
+            dwx = wix - wjx
+            dwy = wiy - wjy
+            dwz = wiz - wjz
+        else:
+            overlap = w[OVERLAP * CAP + m]
+            lever_i = w[LEVER_I * CAP + m]
+            lever_j = w[LEVER_J * CAP + m]
+            r_eff = w[R_EFF * CAP + m]
+            m_eff = w[M_EFF * CAP + m]
+            nx = w[NX * CAP + m]
+            ny = w[NY * CAP + m]
+            nz = w[NZ * CAP + m]
+            wx = w[WX * CAP + m]
+            wy = w[WY * CAP + m]
+            wz = w[WZ * CAP + m]
+            dwx = w[DWX * CAP + m]
+            dwy = w[DWY * CAP + m]
+            dwz = w[DWZ * CAP + m]
         out = contact_response(  # noqa: F821 (set by law_address)
-            MODEL, w, m, 0, w[OVERLAP * CAP + m], w[LEVER_I * CAP + m],  # noqa: F821
-            w[LEVER_J * CAP + m], w[R_EFF * CAP + m], w[M_EFF * CAP + m], w[NX * CAP + m],
-            w[NY * CAP + m], w[NZ * CAP + m], w[DVX * CAP + m], w[DVY * CAP + m],
-            w[DVZ * CAP + m], w[WX * CAP + m], w[WY * CAP + m], w[WZ * CAP + m],
-            w[DWX * CAP + m], w[DWY * CAP + m], w[DWZ * CAP + m], w, m, dt)
+            MODEL, w, m, 0, overlap, lever_i, lever_j, r_eff, m_eff, nx, ny, nz,  # noqa: F821
+            w[DVX * CAP + m], w[DVY * CAP + m], w[DVZ * CAP + m], wx, wy, wz, dwx, dwy, dwz,
+            w, m, dt)
         # one store per output: a tuple indexed in a loop would keep the loop scalar
         w[OUTPUT * CAP + m] = out[0]
         w[(OUTPUT + 1) * CAP + m] = out[1]
@@ -164,7 +202,7 @@ def law_address(model_ids):
     key = tuple(int(x) for x in model_ids)
     if key not in _LOOPS:
         from ..physics.contact import contact_force
-        from .contacts import contact_response
+        from .contacts import contact_geometry, contact_response
 
         suffix = "_" + "_".join(str(x) for x in key)
         make = scalar
@@ -173,24 +211,27 @@ def law_address(model_ids):
         memo[contact_force] = specialized(contact_force, key, make, memo, swap, suffix)
         laws = retarget(contact_response, make, memo, swap, suffix)
         loop = retarget(kernel(_law_rows), callback(SIGNATURE), {},
-                        {"MODEL": key, "contact_response": laws}, suffix)
+                        {"MODEL": key, "contact_response": laws,
+                         "contact_geometry": contact_geometry}, suffix)
         _LOOPS[key] = loop
     return _LOOPS[key].address
 
 
 @intrinsic
-def call_law(typingctx, address, workspace, count, dt):
+def call_law(typingctx, address, workspace, count, dt, pairs):
     """Run the law loop at ``address`` on the first ``count`` contacts of
-    ``workspace``."""
-    sig = types.void(address, workspace, count, dt)
+    ``workspace``: pairs (pairs = 1, whose geometry the loop computes) or wall
+    contacts (0)."""
+    sig = types.void(address, workspace, count, dt, pairs)
 
     def codegen(context, builder, signature, args):
-        where, work, n, step = args
+        where, work, n, step, kind_of = args
         w = context.make_array(signature.args[1])(context, builder, work)
         pointer = ir.DoubleType().as_pointer()
-        kind = ir.FunctionType(ir.VoidType(), [pointer, ir.IntType(64), ir.DoubleType()])
+        kind = ir.FunctionType(ir.VoidType(), [pointer, ir.IntType(64), ir.DoubleType(),
+                                               ir.IntType(64)])
         builder.call(builder.inttoptr(where, kind.as_pointer()),
-                     [builder.bitcast(w.data, pointer), n, step])
+                     [builder.bitcast(w.data, pointer), n, step, kind_of])
         return context.get_dummy_value()
     return sig, codegen
 

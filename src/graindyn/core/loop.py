@@ -72,15 +72,14 @@ def evaluate_forces(model, params, law, grains, pairs, walls, periodic, gravity,
     wn, wt = wall_forces(model, params, law, positions, velocities, angular_velocities, radii,
                          masses, materials, kind, geometry, offset, velocity, material,
                          wall_start, wall_ids, wall_history, contact_force, contact_torque,
-                         max_overlap, dt, nblock)
+                         own, max_overlap, dt, nblock)
     force[:] = 0.0
     power = 0.0
-    for i in range(masses.size):
-        for q in range(wall_start[i], wall_start[i + 1]):
-            w = wall_ids[q]
-            for d in range(3):
-                force[w, d] -= contact_force[q, d]
-                power += contact_force[q, d] * velocity[w, d]
+    for q in range(wall_start[masses.size]):       # every candidate, in grain order
+        w = wall_ids[q]
+        for d in range(3):
+            force[w, d] -= contact_force[q, d]
+            power += contact_force[q, d] * velocity[w, d]
     return dn + wn, dt_ + wt, power
 
 
@@ -173,21 +172,17 @@ def rebuild_due(clock, offset, reference_offset, velocity):
 
 
 @kernel
-def _after(integrator, stage, dt, counters, gravity, grains, pairs, walls, periodic,
+def _after(integrator, stage, dt, counters, gravity, grains, pairs, periodic,
            integrator_history, block_scratch, drift_next):
     """integrators.after_force with the arrays it needs taken out of the bundles."""
     (positions, velocities, angular_velocities, orientations, forces, torques, accelerations,
      angular_accelerations, radii, masses, inertias, materials, fixed, reference_positions,
      max_overlap) = grains
-    (kind, geometry, motion_kind, motion, base, offset, velocity, material, force,
-     reference_offset, wall_start, wall_ids, wall_history, scratch_wall_start,
-     scratch_wall_ids, scratch_wall_history, contact_force, contact_torque) = walls
     return after_force(integrator, stage, dt, counters[HISTORY_STEPS] > 0, counters[DIM],
-                       gravity, pairs, wall_start, contact_force, contact_torque, forces,
-                       torques, masses, inertias, positions, reference_positions, velocities,
-                       angular_velocities, orientations, accelerations, angular_accelerations,
-                       fixed, periodic[0], periodic[2], integrator_history, block_scratch,
-                       drift_next)
+                       gravity, pairs, forces, torques, masses, inertias, positions,
+                       reference_positions, velocities, angular_velocities, orientations,
+                       accelerations, angular_accelerations, fixed, periodic[0], periodic[2],
+                       integrator_history, block_scratch, drift_next)
 
 
 @kernel
@@ -249,8 +244,7 @@ def run_chunk(model, params, law, grains, pairs, walls, periodic, clock, counter
             # stage and drift_next as a plain int64 and bool: literals would compile the
             # pass a second time
             clock[MOVE] = _after(integrator, np.int64(0), 0.0, counters, gravity, grains,
-                                 pairs, walls, periodic, integrator_history, block_scratch,
-                                 s < 0)
+                                 pairs, periodic, integrator_history, block_scratch, s < 0)
             counters[PRIMED] = 1
             # grains that start too deep in each other or in a wall: stop before moving
             if max_overlap.size > 0 and max_overlap.max() > clock[OVERLAP_LIMIT]:
@@ -284,7 +278,7 @@ def run_chunk(model, params, law, grains, pairs, walls, periodic, clock, counter
             drifted = stage == last and s + 1 < nsteps \
                 and (counters[STEP] + 1) % counters[CHECK_INTERVAL] != 0
             clock[MOVE] = _after(integrator, stage, dt, counters, gravity, grains, pairs,
-                                 walls, periodic, integrator_history, block_scratch, drifted)
+                                 periodic, integrator_history, block_scratch, drifted)
         clock[TIME] += dt
         counters[STEP] += 1
         counters[HISTORY_STEPS] += 1

@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from ..._jit import block, block_body, parallel, prange, scalar
-from ..contacts import gather_grain
+from ..contacts import gather_pairs
 from ..neighbors import min_image
 from .beeman import beeman_correct, beeman_drift
 from .gear import gear_correct, gear_drift
@@ -144,24 +144,23 @@ def correct_grain(i, integrator, stage, dt, started, dim, f, forces, torques, ma
 
 @block_body
 def _correct_rows(lo, hi, integrator, stage, dt, started, dim, gravity, own, start,
-                  reverse_start, reverse_pairs, pair_force, pair_torque_j, wall_start,
-                  wall_force, wall_torque, forces, torques, masses, inertias, positions,
-                  reference_positions, velocities, angular_velocities, orientations,
-                  accelerations, angular_accelerations, fixed, periodic_flag,
-                  periodic_length, history, drift_next):
-    """gather_grain and correct_grain for grains lo..hi-1, then, when ``drift_next``,
+                  reverse_start, reverse_pairs, pair_force, pair_torque_j, forces, torques,
+                  masses, inertias, positions, reference_positions, velocities,
+                  angular_velocities, orientations, accelerations, angular_accelerations,
+                  fixed, periodic_flag, periodic_length, history, drift_next):
+    """gather_pairs and correct_grain for grains lo..hi-1, then, when ``drift_next``,
     the first drift of the next step (drift_grain, stage 0: one pass over the grains'
     arrays instead of two); returns max |r - r_ref| + max |v| dt + max |a| dt^2/2 over
     them before that drift [m] (square roots once per block, not per grain).  The
-    pairs listed by the block's grains (from start[lo] on) are already in own
-    (contacts._pair_block)."""
+    pairs listed by the block's grains (from start[lo] on) and their wall contacts are
+    already in own (contacts._pair_block, _wall_block)."""
     owned_from = start[lo]
     top_d2 = 0.0
     top_v2 = 0.0
     top_a2 = 0.0
     for i in range(lo, hi):
-        f = gather_grain(i, masses[i], gravity, own, reverse_start, reverse_pairs, owned_from,
-                         pair_force, pair_torque_j, wall_start, wall_force, wall_torque)
+        f = gather_pairs(i, masses[i], gravity, own, reverse_start, reverse_pairs, owned_from,
+                         pair_force, pair_torque_j)
         d2, v2, a2 = correct_grain(
             i, integrator, stage, dt, started, dim, f, forces, torques, masses, inertias,
             positions, reference_positions, velocities, angular_velocities, orientations,
@@ -179,11 +178,10 @@ def _correct_rows(lo, hi, integrator, stage, dt, started, dim, gravity, own, sta
 
 @block
 def _correct_block(lo, hi, integrator, stage, dt, started, dim, gravity, own, start,
-                   reverse_start, reverse_pairs, pair_force, pair_torque_j, wall_start,
-                   wall_force, wall_torque, forces, torques, masses, inertias, positions,
-                   reference_positions, velocities, angular_velocities, orientations,
-                   accelerations, angular_accelerations, fixed, periodic_flag,
-                   periodic_length, history, drift_next):
+                   reverse_start, reverse_pairs, pair_force, pair_torque_j, forces, torques,
+                   masses, inertias, positions, reference_positions, velocities,
+                   angular_velocities, orientations, accelerations, angular_accelerations,
+                   fixed, periodic_flag, periodic_length, history, drift_next):
     """_correct_rows, compiled once as a serial function.  Velocity Verlet in 3D (the
     default scheme) gets its own copy, in which the integrator, its single stage and
     the dimension are constants: the dispatch on them folds away (about 40 us of the
@@ -193,25 +191,23 @@ def _correct_block(lo, hi, integrator, stage, dt, started, dim, gravity, own, st
         # LLVM folds them after inlining
         return _correct_rows(lo, hi, np.int64(VELOCITY_VERLET), np.int64(0), dt, started,
                              np.int64(3), gravity, own, start, reverse_start, reverse_pairs,
-                             pair_force, pair_torque_j, wall_start, wall_force, wall_torque,
-                             forces, torques, masses, inertias, positions,
-                             reference_positions, velocities, angular_velocities,
+                             pair_force, pair_torque_j, forces, torques, masses, inertias,
+                             positions, reference_positions, velocities, angular_velocities,
                              orientations, accelerations, angular_accelerations, fixed,
                              periodic_flag, periodic_length, history, drift_next)
     return _correct_rows(lo, hi, integrator, stage, dt, started, dim, gravity, own, start,
-                         reverse_start, reverse_pairs, pair_force, pair_torque_j, wall_start,
-                         wall_force, wall_torque, forces, torques, masses, inertias,
-                         positions, reference_positions, velocities, angular_velocities,
+                         reverse_start, reverse_pairs, pair_force, pair_torque_j, forces,
+                         torques, masses, inertias, positions, reference_positions,
+                         velocities, angular_velocities,
                          orientations, accelerations, angular_accelerations, fixed,
                          periodic_flag, periodic_length, history, drift_next)
 
 
 @parallel
-def after_force(integrator, stage, dt, started, dim, gravity, pairs, wall_start, wall_force,
-                wall_torque, forces, torques, masses, inertias, positions, reference_positions,
-                velocities, angular_velocities, orientations, accelerations,
-                angular_accelerations, fixed, periodic_flag, periodic_length, history,
-                block_scratch, drift_next):
+def after_force(integrator, stage, dt, started, dim, gravity, pairs, forces, torques, masses,
+                inertias, positions, reference_positions, velocities, angular_velocities,
+                orientations, accelerations, angular_accelerations, fixed, periodic_flag,
+                periodic_length, history, block_scratch, drift_next):
     """Gather contact forces onto grains, correct velocities with the new accelerations
     (dt = 0 only stores the accelerations at start-up), and return a bound on how far
     any grain may be from where it was at the last neighbour build by the end of the
@@ -228,17 +224,16 @@ def after_force(integrator, stage, dt, started, dim, gravity, pairs, wall_start,
     if nblock == 1:    # no parallel region to enter (a few us per call); a plain int64 0
         block_scratch[0] = _correct_block(
             np.int64(0), n, integrator, stage, dt, started, dim, gravity, own, start,
-            reverse_start, reverse_pairs, pair_force, pair_torque_j, wall_start, wall_force,
-            wall_torque, forces, torques, masses, inertias, positions, reference_positions,
-            velocities, angular_velocities, orientations, accelerations, angular_accelerations,
-            fixed, periodic_flag, periodic_length, history, drift_next)
+            reverse_start, reverse_pairs, pair_force, pair_torque_j, forces, torques, masses,
+            inertias, positions, reference_positions, velocities, angular_velocities,
+            orientations, accelerations, angular_accelerations, fixed, periodic_flag,
+            periodic_length, history, drift_next)
         return block_scratch[0]
     for b in prange(nblock):
         block_scratch[b] = _correct_block(
             b * n // nblock, (b + 1) * n // nblock, integrator, stage, dt, started, dim,
             gravity, own, start, reverse_start, reverse_pairs, pair_force, pair_torque_j,
-            wall_start, wall_force, wall_torque, forces, torques, masses, inertias,
-            positions, reference_positions, velocities, angular_velocities, orientations,
-            accelerations, angular_accelerations, fixed, periodic_flag, periodic_length,
-            history, drift_next)
+            forces, torques, masses, inertias, positions, reference_positions, velocities,
+            angular_velocities, orientations, accelerations, angular_accelerations, fixed,
+            periodic_flag, periodic_length, history, drift_next)
     return block_scratch.max()
