@@ -26,8 +26,8 @@ import numpy as np
 from .._jit import block, inlined, parallel, prange, scalar
 from ..physics.contact import contact_force, contact_release
 from .law_loop import (CAP, DVX, DWX, FIXED_I, FIXED_J, HISTORY, LEVER_I, LEVER_J, M_EFF, M_I,
-                       M_J, NX, NY, NZ, OUTPUT, OVERLAP, PARAMS, R_EFF, R_I, R_J, RATIO, WX,
-                       call_law)
+                       M_J, NX, NY, NZ, OUTPUT, OVERLAP, PARAMS, R_EFF, R_I, R_J, RATIO, SX, SY,
+                       SZ, W_I, W_J, WX, call_law)
 from .neighbors import min_image
 from .walls import wall_distance
 
@@ -241,9 +241,9 @@ def _stage(work, c, params, a, b, history, k, overlap, lever_i, lever_j, r_eff, 
 def _fill(count, work, slots, params, velocities, angular_velocities, radii, masses,
           materials, fixed, history):
     """Complete the pairs 0..count-1 gathered in ``work`` (their separations in rows
-    NX..NZ, their pair, first and second grain in ``slots``) with what the law loop
-    computes their geometry and law from: radii, masses, fixed flags, v_i - v_j, w_i
-    (rows WX..WZ), w_j (rows DWX..DWZ), pair-table row and history."""
+    SX..SZ, their pair, first and second grain in ``slots``) with what the law loop
+    computes their geometry and law from: radii, masses, fixed flags, v_i - v_j, w_i,
+    w_j, pair-table row and history."""
     for c in range(count):
         k = slots[0, c]
         i = slots[1, c]
@@ -256,8 +256,8 @@ def _fill(count, work, slots, params, velocities, angular_velocities, radii, mas
         work[FIXED_J * CAP + c] = fixed[j]
         for d in range(3):
             work[(DVX + d) * CAP + c] = velocities[i, d] - velocities[j, d]
-            work[(WX + d) * CAP + c] = angular_velocities[i, d]
-            work[(DWX + d) * CAP + c] = angular_velocities[j, d]
+            work[(W_I + d) * CAP + c] = angular_velocities[i, d]
+            work[(W_J + d) * CAP + c] = angular_velocities[j, d]
         _stage_table(work, c, params, materials[i], materials[j], history, k)
 
 
@@ -332,9 +332,9 @@ def _pair_block(lo, hi, law, work, slots, dirty, model, params, positions, veloc
                 dissipated_t += _opened(model, params, a, materials[j], r_i * r_j / rsum,
                                         history, pair_force, pair_torque_j, k)
             dirty[k] = touching
-            work[NX * CAP + count] = dx
-            work[NY * CAP + count] = dy
-            work[NZ * CAP + count] = dz
+            work[SX * CAP + count] = dx
+            work[SY * CAP + count] = dy
+            work[SZ * CAP + count] = dz
             slots[0, count] = k
             slots[1, count] = i
             slots[2, count] = j
