@@ -1,6 +1,7 @@
 """graindyn side of the LAMMPS benchmark (../shared/bench/run_all.py --custom ...).
 
     python benchmarks/lammps_bed.py STATE CYL SIZE E e DT SKIN WARM STEPS THREADS [LAWS]
+                                    [--orientations]
 
 Loads the settled bed STATE (x y z r per line, SI), builds the same container (CYL 0:
 box [0, SIZE]^2 with a floor at z = 0 and an open top; CYL 1: cylinder of radius SIZE
@@ -8,7 +9,9 @@ about the z axis with a floor at z = 0), the same physics as lmp_bench.in (Hertz
 E and nu = 0.3, Mindlin tangential spring, tangential damping ratio 1, mu = 0.5, Tsuji
 damping from restitution e, no damping limit, rho = 2650, g = 9.81), runs WARM untimed
 and STEPS timed steps on THREADS threads, and prints `wall <s>`, `zpp <contacts per
-grain>`, particle-steps/s and peak memory.
+grain>`, particle-steps/s and peak memory.  LAMMPS's granular atoms carry no
+orientation, so the grains' orientations are not turned (Simulation(orientations=False),
+the same trajectory) unless --orientations is given (graindyn's default).
 
 LAWS (optional, not used by run_all.py) swaps the contact model, to time another law on
 the same bed: "normal,damping,tangential[,rolling[,twisting]]".  The linear and
@@ -22,7 +25,8 @@ import time
 import numpy as np
 
 
-def bed(state_file, cyl, size, young, rest, dt, skin, laws=("hertz", "tsuji", "mindlin")):
+def bed(state_file, cyl, size, young, rest, dt, skin, laws=("hertz", "tsuji", "mindlin"),
+        orientations=False):
     """The Simulation of the benchmark bed (arguments as on the command line)."""
     import graindyn as gd
 
@@ -42,10 +46,12 @@ def bed(state_file, cyl, size, young, rest, dt, skin, laws=("hertz", "tsuji", "m
         walls = [gd.Plane((0, 0, 0), (1, 0, 0)), gd.Plane((size, 0, 0), (-1, 0, 0)),
                  gd.Plane((0, 0, 0), (0, 1, 0)), gd.Plane((0, size, 0), (0, -1, 0)), floor]
     return gd.Simulation(state, [grain], model, walls=walls, dt=float(dt), skin=float(skin),
-                         check_interval=1000)
+                         check_interval=1000, orientations=orientations)
 
 
 def main(argv):
+    orientations = "--orientations" in argv
+    argv = [a for a in argv if a != "--orientations"]
     if len(argv) not in (10, 11):
         sys.exit(__doc__)
     state_file, cyl, size, young, rest, dt, skin, warm, steps, threads = argv[:10]
@@ -55,7 +61,7 @@ def main(argv):
     numba.set_num_threads(int(threads))
     from graindyn.analysis.packing import coordination_number
 
-    sim = bed(state_file, cyl, size, young, rest, dt, skin, laws)
+    sim = bed(state_file, cyl, size, young, rest, dt, skin, laws, orientations)
     state = sim.state
     sim.run(steps=int(warm))
     t0 = time.perf_counter()

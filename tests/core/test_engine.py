@@ -144,6 +144,30 @@ def _settling(seed=3):
                          walls=gd.box((0, 0, 0), (nx * spacing, nx * spacing, 3 * nz * spacing)))
 
 
+@pytest.mark.parametrize("integrator", ["velocity_verlet", "leap_frog",
+                                        "optimized_velocity_verlet"])
+def test_orientations_off_leave_the_trajectory_as_it_is(integrator):
+    """Simulation(orientations=False): the same trajectory to the bit (an orientation acts
+    on nothing), orientations left as they were; followed, they do turn."""
+    runs = {}
+    for followed in (True, False):
+        sim = _settling()
+        sim = gd.Simulation(sim.state, sim.materials, sim.model, walls=sim.walls,
+                            skin=0.2 * R, integrator=integrator, orientations=followed)
+        start = sim.state.orientations.copy()
+        sim.run(steps=1500)
+        runs[followed] = sim
+    on, off = runs[True].state, runs[False].state
+    for name in ("positions", "velocities", "angular_velocities"):
+        np.testing.assert_array_equal(getattr(off, name), getattr(on, name))
+    assert np.abs(on.angular_velocities).max() > 1.0
+    np.testing.assert_array_equal(off.orientations, start)
+    assert np.abs(on.orientations - start).max() > 1e-3
+    with pytest.raises(ValueError, match="CPU option"):
+        gd.Simulation(on, runs[True].materials, runs[True].model, backend="gpu",
+                      orientations=False)
+
+
 def test_capacity_overflow_gives_identical_run():
     steps = 4000
     normal = _settling()

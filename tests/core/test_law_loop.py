@@ -90,11 +90,13 @@ def test_batched_law_equals_contact_by_contact(model, one_thread):
                 g[12], per[0], per[2], p[0], p[1], p[2], p[8], p[9], p[10], g[14], 1e-7,
                 nblock)
     batched = [a.copy() for a in (p[2], p[8], p[9], p[10])]
+    deepest = g[14].max()            # kept by block (contacts.keep_worst)
     for a, b in zip((p[2], p[8], p[9], p[10], g[14]), saved):
         a[...] = b
     one_by_one(sim.model_ids, sim.params, g, per, p, 1e-7)
     for name, a, b in zip(("history", "force"), batched, (p[2], p[8])):
         assert np.array_equal(a, b), name
+    assert deepest == g[14].max() > 0.0
     assert np.count_nonzero(p[8]) > 0
     mine = totals(sim, batched[2], batched[1], batched[3], nblock)
     reference = totals(sim, p[9], p[8], p[10], 0)
@@ -154,9 +156,9 @@ def test_batched_walls_equal_contact_by_contact(model, one_thread):
     for a, b in zip((w[12], w[16], w[17], g[14]), saved):
         a[...] = b
     walls_one_by_one(sim.model_ids, sim.params, g, w, 1e-7)
-    for name, a, b in zip(("history", "force", "torque", "max_overlap"), batched,
-                          (w[12], w[16], w[17], g[14])):
+    for name, a, b in zip(("history", "force", "torque"), batched, (w[12], w[16], w[17])):
         assert np.array_equal(a, b), name
+    assert batched[3].max() == g[14].max() > 0.0    # by block, by grain: one maximum
     assert np.count_nonzero(w[16]) > 0
     # and added to their grains' sums, after what was there
     grain = np.repeat(np.arange(sim.state.n), np.diff(w[10]))

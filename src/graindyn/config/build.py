@@ -55,7 +55,7 @@ def simulation_kwargs(config: Config):
             "periodic": periodic, "gravity": config.run.gravity, "dt": i.dt, "skin": i.skin,
             "integrator": i.name, "allow_large_dt": i.allow_large_dt,
             "overlap_limit": i.overlap_limit, "check_interval": i.check_interval,
-            "backend": config.run.backend}
+            "orientations": i.orientations, "backend": config.run.backend}
 
 
 def check_time_step(config: Config):

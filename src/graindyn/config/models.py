@@ -204,6 +204,9 @@ class IntegratorSection(Section):
                              ge=1, le=1_000_000)
     overlap_limit: float = _f(0.2, "stop when an overlap exceeds this fraction of the "
                               "smaller radius [-]; (0, 1]", gt=0, le=1)
+    orientations: bool = _f(True, "turn the grains' orientations every step; false "
+                            "leaves them as they are (CPU only; they act on nothing, and "
+                            "turning costs about a tenth of a step)")
 
     @field_validator("name")
     @classmethod

@@ -263,24 +263,24 @@ def _fill(count, work, slots, params, velocities, angular_velocities, radii, mas
 
 @scalar
 def _flush(law, work, count, slots, hi, params, velocities, angular_velocities, radii, masses,
-           materials, fixed, history, pair_force, own, pair_torque_j, max_overlap, dt):
+           materials, fixed, history, pair_force, own, pair_torque_j, dt):
     """Complete the ``count`` contacts gathered in ``work`` (_fill), evaluate their law
     (law_loop.py) and scatter them back in gathering order: forces, histories, and the
     sums on each grain of the block (grains below ``hi``); the torque on a second grain
     beyond the block is stored for the gather.  Returns the normal and tangential
-    energy dissipated [J]; raises max_overlap of each first grain to its overlap /
-    smaller radius."""
+    energy dissipated [J] and their largest overlap / smaller radius."""
     _fill(count, work, slots, params, velocities, angular_velocities, radii, masses,
           materials, fixed, history)
     call_law(law, work, count, dt, np.int64(1))
     lost_n = 0.0
     lost_t = 0.0
+    worst = 0.0
     for s in range(count):
         k = slots[0, s]
         i = slots[1, s]
         j = slots[2, s]
         inside = j < hi
-        max_overlap[i] = max(max_overlap[i], work[RATIO * CAP + s])
+        worst = max(worst, work[RATIO * CAP + s])
         for d in range(3):
             f = work[(OUTPUT + d) * CAP + s]
             torque_j = work[(OUTPUT + 6 + d) * CAP + s]
@@ -296,7 +296,7 @@ def _flush(law, work, count, slots, hi, params, velocities, angular_velocities, 
             history[k, h] = work[(HISTORY + h) * CAP + s]
         lost_n += work[(OUTPUT + 9) * CAP + s]
         lost_t += work[(OUTPUT + 10) * CAP + s]
-    return lost_n, lost_t
+    return lost_n, lost_t, worst
 
 
 @block
@@ -317,6 +317,7 @@ def _pair_block(lo, hi, law, work, slots, dirty, model, params, positions, veloc
     px, py, pz = periodic_flag[0], periodic_flag[1], periodic_flag[2]
     lx, ly, lz = periodic_length[0], periodic_length[1], periodic_length[2]
     count = 0
+    worst = 0.0
     for i in range(lo, hi):
         for d in range(6):
             own[i, d] = 0.0
@@ -340,19 +341,32 @@ def _pair_block(lo, hi, law, work, slots, dirty, model, params, positions, veloc
             slots[2, count] = j
             count += touching
             if count == CAP:
-                dn, dt_ = _flush(law, work, count, slots, hi, params, velocities,
-                                 angular_velocities, radii, masses, materials, fixed, history,
-                                 pair_force, own, pair_torque_j, max_overlap, dt)
+                dn, dt_, deepest = _flush(law, work, count, slots, hi, params, velocities,
+                                          angular_velocities, radii, masses, materials, fixed,
+                                          history, pair_force, own, pair_torque_j, dt)
                 dissipated_n += dn
                 dissipated_t += dt_
+                worst = max(worst, deepest)
                 count = 0
     if count > 0:
-        dn, dt_ = _flush(law, work, count, slots, hi, params, velocities, angular_velocities,
-                         radii, masses, materials, fixed, history, pair_force, own,
-                         pair_torque_j, max_overlap, dt)
+        dn, dt_, deepest = _flush(law, work, count, slots, hi, params, velocities,
+                                  angular_velocities, radii, masses, materials, fixed, history,
+                                  pair_force, own, pair_torque_j, dt)
         dissipated_n += dn
         dissipated_t += dt_
+        worst = max(worst, deepest)
+    keep_worst(lo, hi, worst, max_overlap)
     return dissipated_n, dissipated_t
+
+
+@scalar
+def keep_worst(lo, hi, worst, max_overlap):
+    """Raise max_overlap[lo] to ``worst``, the largest overlap / smaller radius of the
+    contacts of grains lo..hi-1: the CPU keeps it by block (at its first grain), as the
+    loop reads only its maximum (loop._checks), so that no contact reads and writes the
+    array (the GPU, pair_row and wall_row, keep it by grain)."""
+    if hi > lo:
+        max_overlap[lo] = max(max_overlap[lo], worst)
 
 
 @parallel
@@ -367,8 +381,8 @@ def pair_forces(model, params, law, positions, velocities, angular_velocities, r
     [N m] the torque on its second grain j when j is in another block; own[i] (6) is
     the sum of the forces and torques on i of the pairs it lists and of the pairs of
     its block that list it, in gathering order.
-    max_overlap[i] keeps the largest overlap / min(R_i, R_j) of grain i's pairs since
-    the loop last read and reset it.
+    max_overlap keeps the largest overlap / min(R_i, R_j) since the loop last read and
+    reset it (keep_worst: by block on the CPU, by grain on the GPU).
     Returns the energies dissipated in the step, normal and tangential [J], summed over
     ``nblock`` fixed blocks of grains (block_count) in block order.
     """
@@ -480,9 +494,9 @@ def _wall_block(lo, hi, law, work, slots, model, params, positions, velocities,
     dissipated_n = 0.0
     dissipated_t = 0.0
     count = 0
+    worst = 0.0
     for i in range(lo, hi):
         r_i = radii[i]
-        worst = max_overlap[i]
         for q in range(wall_start[i], wall_start[i + 1]):
             overlap, nx, ny, nz, lost = wall_gap(
                 i, q, model, params, positions, radii, materials, wall_kind, wall_geometry,
@@ -510,12 +524,12 @@ def _wall_block(lo, hi, law, work, slots, model, params, positions, velocities,
                 dissipated_n += dn
                 dissipated_t += dt_
                 count = 0
-        max_overlap[i] = worst
     if count > 0:
         dn, dt_ = _flush_walls(law, work, count, slots, wall_history, wall_force, wall_torque,
                                own, dt)
         dissipated_n += dn
         dissipated_t += dt_
+    keep_worst(lo, hi, worst, max_overlap)
     return dissipated_n, dissipated_t
 
 

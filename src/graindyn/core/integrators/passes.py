@@ -53,7 +53,10 @@ def correct(integrator, stage, h, started, a_new, vel, acc, history, base, i, d)
 @scalar
 def turn(integrator, orientations, i, px, py, pz, wx, wy, wz, h):
     """Turn grain i by the rotation vector (px, py, pz) [rad]; leap_frog uses Omelyan's
-    quaternion update with the half-step angular velocity (wx, wy, wz) [rad/s]."""
+    quaternion update with the half-step angular velocity (wx, wy, wz) [rad/s].
+    Orientations of shape (0, 4): not followed (Simulation(orientations=False))."""
+    if orientations.shape[0] == 0:
+        return
     if integrator == LEAP_FROG:
         q = quaternion_leapfrog(orientations[i, 0], orientations[i, 1], orientations[i, 2],
                                 orientations[i, 3], wx, wy, wz, h)
@@ -126,10 +129,7 @@ def correct_grain(i, integrator, stage, dt, started, dim, f, forces, torques, ma
         pz = correct(integrator, stage, dt, started, f[5] * inverse_inertia,
                      angular_velocities, angular_accelerations, history, rot, i, 2)
         if px != 0.0 or py != 0.0 or pz != 0.0:
-            q = rotate_quaternion(orientations[i, 0], orientations[i, 1],
-                                  orientations[i, 2], orientations[i, 3], px, py, pz)
-            for c in range(4):
-                orientations[i, c] = q[c]
+            turn(np.int64(VELOCITY_VERLET), orientations, i, px, py, pz, 0.0, 0.0, 0.0, dt)
     d2 = 0.0
     v2 = 0.0
     a2 = 0.0
