@@ -7,6 +7,7 @@ from typer.testing import CliRunner
 
 from graindyn.cli import app
 from graindyn.config import Config, ConfigError, dumps, load, validate
+from graindyn.config.build import simulation_kwargs
 from graindyn.config.models import MaterialSection
 from graindyn.core.species import Material
 from graindyn.gpu import unavailable
@@ -102,6 +103,14 @@ def test_python_api_takes_the_same_models(small_config):
     config = Config.model_validate(small_config)
     with pytest.raises(ValueError):
         config.grains.count = -1  # assignments are validated too
+
+
+def test_integrator_section_reaches_the_simulation(small_config):
+    """Every integrator option is passed on: orientations too (false: not turned)."""
+    small_config.setdefault("integrator", {})["orientations"] = False
+    kwargs = simulation_kwargs(Config.model_validate(small_config))
+    assert kwargs["orientations"] is False
+    assert kwargs["check_interval"] == 100
 
 
 def test_study_command_is_wired():
