@@ -166,3 +166,16 @@ def test_batched_walls_equal_contact_by_contact(model, one_thread):
     for q, i in enumerate(grain):
         added[i] += np.concatenate((batched[1][q], batched[2][q]))
     assert np.array_equal(own, added)
+
+
+def test_block_count_keeps_tiny_systems_on_one_block():
+    """One block on one thread and below SERIAL grains per thread (no parallel region);
+    else one per thread at least, about 2048 grains each, at most MAX_BLOCKS."""
+    from graindyn.core.contacts import MAX_BLOCKS, SERIAL, block_count
+    assert block_count(10**6, 1) == 1
+    assert block_count(280, 2) == 1
+    assert block_count(2 * SERIAL - 1, 2) == 1
+    assert block_count(2 * SERIAL, 2) == 2
+    assert block_count(1000, 2) == 2
+    assert block_count(100_000, 2) == 100_000 // 2048
+    assert block_count(10**7, 4) == MAX_BLOCKS
