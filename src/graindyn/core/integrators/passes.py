@@ -104,9 +104,9 @@ def correct_grain(i, integrator, stage, dt, started, dim, f, forces, torques, ma
                   orientations, accelerations, angular_accelerations, fixed, periodic_flag,
                   periodic_length, history):
     """Grain i after the force evaluation (the loop body of ``after_force``, shared with
-    the GPU kernels): stores its force and torque f (6, contacts.gather_grain),
-    corrects, turns.  Returns |r - r_ref|^2 [m^2], |v|^2
-    [m^2/s^2] and |a|^2 [m^2/s^4] for the half-skin bound."""
+    the GPU kernels): stores its force and torque f (6, contacts.gather_pairs on the
+    CPU, gather_grain on the GPU), corrects, turns.  Returns |r - r_ref|^2 [m^2],
+    |v|^2 [m^2/s^2] and |a|^2 [m^2/s^4] for the half-skin bound."""
     rot = SLOTS[integrator]
     for d in range(3):
         forces[i, d] = f[d]
