@@ -25,9 +25,8 @@ import numpy as np
 
 from .._jit import block, inlined, parallel, prange, scalar
 from ..physics.contact import contact_force, contact_release
-from .law_loop import (CAP, DVX, DWX, FIXED_I, FIXED_J, HISTORY, LEVER_I, LEVER_J, M_EFF, M_I,
-                       M_J, NX, NY, NZ, OUTPUT, OVERLAP, PARAMS, R_EFF, R_I, R_J, RATIO, SX, SY,
-                       SZ, W_I, W_J, WX, call_law)
+from .law_loop import (CAP, DVX, FIXED_I, FIXED_J, HISTORY, M_I, M_J, OUTPUT, PARAMS, R_I, R_J,
+                       RATIO, SX, SY, SZ, W_I, W_J, call_law, stage_geometry)
 from .neighbors import min_image
 from .walls import wall_distance
 
@@ -217,24 +216,13 @@ def _stage_table(work, c, params, a, b, history, k):
 def _stage(work, c, params, a, b, history, k, overlap, lever_i, lever_j, r_eff, m_eff, nx, ny,
            nz, dvx, dvy, dvz, wx, wy, wz, dwx, dwy, dwz):
     """Column c of the workspace: the inputs of contact_response for wall contact k
-    between materials a and b, and _stage_table."""
-    work[OVERLAP * CAP + c] = overlap
-    work[LEVER_I * CAP + c] = lever_i
-    work[LEVER_J * CAP + c] = lever_j
-    work[R_EFF * CAP + c] = r_eff
-    work[M_EFF * CAP + c] = m_eff
-    work[NX * CAP + c] = nx
-    work[NY * CAP + c] = ny
-    work[NZ * CAP + c] = nz
+    between materials a and b (law_loop.stage_geometry and v_rel), and
+    _stage_table."""
+    stage_geometry(work, c, overlap, lever_i, lever_j, r_eff, m_eff, nx, ny, nz, wx, wy, wz,
+                   dwx, dwy, dwz)
     work[DVX * CAP + c] = dvx
     work[(DVX + 1) * CAP + c] = dvy
     work[(DVX + 2) * CAP + c] = dvz
-    work[WX * CAP + c] = wx
-    work[(WX + 1) * CAP + c] = wy
-    work[(WX + 2) * CAP + c] = wz
-    work[DWX * CAP + c] = dwx
-    work[(DWX + 1) * CAP + c] = dwy
-    work[(DWX + 2) * CAP + c] = dwz
     _stage_table(work, c, params, a, b, history, k)
 
 

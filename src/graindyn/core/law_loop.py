@@ -56,6 +56,28 @@ def workspace_rows(history_size):
 
 
 @scalar
+def stage_geometry(work, c, overlap, lever_i, lever_j, r_eff, m_eff, nx, ny, nz, wx, wy, wz,
+                   dwx, dwy, dwz):
+    """Column c of a workspace: the inputs of contact_response that follow from the
+    contact's geometry (a wall contact's from contacts._stage, a pair's in _law_rows;
+    w = R'_i w_i + R'_j w_j, dw = w_i - w_j)."""
+    work[OVERLAP * CAP + c] = overlap
+    work[LEVER_I * CAP + c] = lever_i
+    work[LEVER_J * CAP + c] = lever_j
+    work[R_EFF * CAP + c] = r_eff
+    work[M_EFF * CAP + c] = m_eff
+    work[NX * CAP + c] = nx
+    work[NY * CAP + c] = ny
+    work[NZ * CAP + c] = nz
+    work[WX * CAP + c] = wx
+    work[WY * CAP + c] = wy
+    work[WZ * CAP + c] = wz
+    work[DWX * CAP + c] = dwx
+    work[DWY * CAP + c] = dwy
+    work[DWZ * CAP + c] = dwz
+
+
+@scalar
 def workspace_hrow(k, c):
     """Index of history value c of contact k in the workspace."""
     return (HISTORY + c) * CAP + k
@@ -69,7 +91,8 @@ def workspace_prow(k, unused, col):
 
 def _law_rows(workspace, count, dt, pairs):
     """The law for contacts 0..count-1 of the workspace (template: MODEL,
-    contact_geometry and contact_response are set in each compiled copy); with
+    contact_geometry, stage_geometry and contact_response are set in each compiled
+    copy); with
     ``pairs``, their geometry first (contacts.contact_geometry), in a loop of its own
     that leaves in the rows what a wall contact stages: with the geometry under a
     branch inside the law loop, the vectorized loop computed it for the wall
@@ -82,14 +105,6 @@ def _law_rows(workspace, count, dt, pairs):
                                  w[SZ * CAP + m], w[R_I * CAP + m], w[R_J * CAP + m],
                                  w[M_I * CAP + m], w[M_J * CAP + m], w[FIXED_I * CAP + m],
                                  w[FIXED_J * CAP + m])
-            w[OVERLAP * CAP + m] = overlap
-            w[LEVER_I * CAP + m] = lever_i
-            w[LEVER_J * CAP + m] = lever_j
-            w[R_EFF * CAP + m] = r_eff
-            w[M_EFF * CAP + m] = m_eff
-            w[NX * CAP + m] = nx
-            w[NY * CAP + m] = ny
-            w[NZ * CAP + m] = nz
             w[RATIO * CAP + m] = ratio
             # unrolled by hand: the vectorizer takes only innermost loops
             wix = w[W_I * CAP + m]
@@ -98,12 +113,9 @@ def _law_rows(workspace, count, dt, pairs):
             wjx = w[W_J * CAP + m]
             wjy = w[(W_J + 1) * CAP + m]
             wjz = w[(W_J + 2) * CAP + m]
-            w[WX * CAP + m] = lever_i * wix + lever_j * wjx
-            w[WY * CAP + m] = lever_i * wiy + lever_j * wjy
-            w[WZ * CAP + m] = lever_i * wiz + lever_j * wjz
-            w[DWX * CAP + m] = wix - wjx
-            w[DWY * CAP + m] = wiy - wjy
-            w[DWZ * CAP + m] = wiz - wjz
+            stage_geometry(w, m, overlap, lever_i, lever_j, r_eff, m_eff, nx, ny,  # noqa: F821
+                           nz, lever_i * wix + lever_j * wjx, lever_i * wiy + lever_j * wjy,
+                           lever_i * wiz + lever_j * wjz, wix - wjx, wiy - wjy, wiz - wjz)
     for m in range(count):
         out = contact_response(  # noqa: F821 (set by law_address)
             MODEL, w, m, 0, w[OVERLAP * CAP + m], w[LEVER_I * CAP + m],  # noqa: F821
@@ -213,7 +225,8 @@ def law_address(model_ids):
         laws = retarget(contact_response, make, memo, swap, suffix)
         loop = retarget(kernel(_law_rows), callback(SIGNATURE), {},
                         {"MODEL": key, "contact_response": laws,
-                         "contact_geometry": contact_geometry}, suffix)
+                         "contact_geometry": contact_geometry,
+                         "stage_geometry": stage_geometry}, suffix)
         _LOOPS[key] = loop
     return _LOOPS[key].address
 
