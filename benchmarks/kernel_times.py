@@ -25,7 +25,7 @@ def main(argv):
     reps = int(argv[8]) if len(argv) == 9 else 500
     numba.set_num_threads(int(threads))
     from graindyn.core import loop
-    from graindyn.core.contacts import pair_forces, wall_forces
+    from graindyn.core.contacts import PAIRS, WALLS, contact_forces
     from graindyn.core.integrators import before_force
 
     sim = bed(state_file, cyl, size, young, rest, dt, skin)
@@ -48,21 +48,15 @@ def main(argv):
                          g[7], g[12], history)
 
     @numba.njit
-    def t_pairs(reps, model, params, law, clock, g, w, p, pairs, counters, history, scratch):
+    def t_part(reps, part, model, params, law, clock, g, w, p, pairs, counters, history,
+               scratch):
         s = 0.0
         for _ in range(reps):
-            s += pair_forces(model, params, law, g[0], g[1], g[2], g[8], g[9], g[11], g[12],
-                             p[0], p[2], pairs[0], pairs[1], pairs[2], pairs[8], pairs[9],
-                             pairs[10], g[14], clock[loop.DT], scratch.size)[0]
-        return s
-
-    @numba.njit
-    def t_walls(reps, model, params, law, clock, g, w, p, pairs, counters, history, scratch):
-        s = 0.0
-        for _ in range(reps):
-            s += wall_forces(model, params, law, g[0], g[1], g[2], g[8], g[9], g[11], w[0],
-                             w[1], w[5], w[6], w[7], w[10], w[11], w[12], w[16], w[17], pairs[9],
-                             g[14], clock[loop.DT], scratch.size)[0]
+            s += contact_forces(model, params, law, g[0], g[1], g[2], g[8], g[9], g[11],
+                                g[12], p[0], p[2], pairs[0], pairs[1], pairs[2], pairs[8],
+                                pairs[10], w[0], w[1], w[5], w[6], w[7], w[10], w[11], w[12],
+                                w[16], w[17], pairs[9], g[14], clock[loop.DT], scratch.size,
+                                part)[0]
         return s
 
     @numba.njit
@@ -89,6 +83,12 @@ def main(argv):
 
     def t_fused(reps, *args):
         return t_correct(reps, True, *args)
+
+    def t_pairs(reps, *args):
+        return t_part(reps, np.int64(PAIRS), *args)
+
+    def t_walls(reps, *args):
+        return t_part(reps, np.int64(WALLS), *args)
 
     def t_step(reps, *args):
         sim.run(steps=reps)

@@ -10,7 +10,7 @@ def test_import_compiles_nothing_and_is_fast():
     code = ("import time; t = time.perf_counter(); import graindyn; "
             "from graindyn.core import loop, contacts, neighbors; "
             "print(time.perf_counter() - t); "
-            "print(sum(len(f.signatures) for f in (loop.run_chunk, contacts.pair_forces, "
+            "print(sum(len(f.signatures) for f in (loop.run_chunk, contacts.contact_forces, "
             "neighbors.rebuild)))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout.split()

@@ -9,7 +9,9 @@ compile time by three; LLVM inlining keeps all but about 3 % of the speed);
 ``kernel`` for serial array loops; ``parallel`` for loops over grains or contacts with
 ``prange``; ``block`` for the serial body of one block of a parallel loop (no reference
 counting), ``block_body`` for such a body LLVM-inlined into a block that calls it with
-constant arguments, so that the branches they decide fold away; ``callback`` for C
+constant arguments, so that the branches they decide fold away (or into several
+callers, compiled once); every call passes typed arguments (``np.int64(0)``,
+``np.bool_(True)``), as a literal would compile the callee once more; ``callback`` for C
 callbacks.  All are cached on disk (``cache=True``), so
 importing graindyn compiles nothing and a warm start only loads the cache.
 ``error_model="numpy"`` makes division by zero give inf/nan as on the GPU instead of

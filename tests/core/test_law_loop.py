@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import graindyn as gd
-from graindyn.core.contacts import pair_forces, pair_row, wall_forces, wall_row
+from graindyn.core.contacts import PAIRS, WALLS, contact_forces, pair_row, wall_row
 from graindyn.core.law_loop import prepare, workspace
 
 MODELS = [("hertz", "tsuji", "mindlin"), ("hooke", "linear", "cundall_strack"),
@@ -76,6 +76,19 @@ def totals(sim, own, force, torque_j, nblock):
     return total
 
 
+def forces_args(sim, law):
+    """contact_forces' arguments up to max_overlap, from a Simulation's arrays."""
+    g, w, p, per = sim._grains(), sim._walls(), sim.pairs, sim._periodic()
+    return (sim.model_ids, sim.params, law, g[0], g[1], g[2], g[8], g[9], g[11], g[12],
+            per[0], per[2], p[0], p[1], p[2], p[8], p[10], w[0], w[1], w[5], w[6], w[7],
+            w[10], w[11], w[12], w[16], w[17], p[9], g[14])
+
+
+def pairs_only(sim, law, nblock):
+    """The pair forces alone (contacts.contact_forces, PAIRS), dt = 1e-7 s."""
+    contact_forces(*forces_args(sim, law), 1e-7, nblock, PAIRS)
+
+
 @pytest.mark.parametrize("model", MODELS, ids=lambda m: ",".join(m))
 def test_batched_law_equals_contact_by_contact(model, one_thread):
     sim = bed(model)
@@ -86,9 +99,7 @@ def test_batched_law_equals_contact_by_contact(model, one_thread):
     nblock = 3
     law = prepare((sim._law[0], *workspace(nblock, sim.history_size)), sim.params,
                   p[1].size)
-    pair_forces(sim.model_ids, sim.params, law, g[0], g[1], g[2], g[8], g[9], g[11],
-                g[12], per[0], per[2], p[0], p[1], p[2], p[8], p[9], p[10], g[14], 1e-7,
-                nblock)
+    pairs_only(sim, law, nblock)
     batched = [a.copy() for a in (p[2], p[8], p[9], p[10])]
     deepest = g[14].max()            # kept by block (contacts.keep_worst)
     for a, b in zip((p[2], p[8], p[9], p[10], g[14]), saved):
@@ -125,9 +136,7 @@ def test_open_pair_with_only_a_stale_torque_is_cleared(one_thread):
     p[10][k] = (1e-9, 2e-9, 3e-9)
     law = prepare((sim._law[0], *workspace(nblock, sim.history_size)), sim.params,
                   p[1].size)
-    pair_forces(sim.model_ids, sim.params, law, g[0], g[1], g[2], g[8], g[9], g[11],
-                g[12], per[0], per[2], p[0], p[1], p[2], p[8], p[9], p[10], g[14], 1e-7,
-                nblock)
+    pairs_only(sim, law, nblock)
     assert np.all(p[10][k] == 0.0)
 
 
@@ -149,9 +158,7 @@ def test_batched_walls_equal_contact_by_contact(model, one_thread):
     own = sim.pairs[9]
     own[...] = np.random.default_rng(6).normal(size=own.shape)
     own_before = own.copy()
-    wall_forces(sim.model_ids, sim.params, sim._law, g[0], g[1], g[2], g[8], g[9], g[11],
-                w[0], w[1], w[5], w[6], w[7], w[10], w[11], w[12], w[16], w[17], own, g[14],
-                1e-7, sim.block_scratch.size)
+    contact_forces(*forces_args(sim, sim._law), 1e-7, sim.block_scratch.size, WALLS)
     batched = [a.copy() for a in (w[12], w[16], w[17], g[14])]
     for a, b in zip((w[12], w[16], w[17], g[14]), saved):
         a[...] = b

@@ -12,7 +12,7 @@ _pair_block); the GPU evaluates them one by one per grain (pair_row).  Both give
 same pair forces, to the bit.  The CPU's block also adds a pair's force and torque to
 its second grain's ``own`` when that grain is in the block (one thread owns the whole
 block), so the gather reads back only the pairs that cross blocks (``owned_from``);
-its wall contacts are added to ``own`` too (wall_forces).  The GPU gathers every pair
+its wall contacts are added to ``own`` too (_wall_block).  The GPU gathers every pair
 and every wall contact.  Only the order of the sums differs.
 
 Geometry (Oquendo Eq. 3-4): n = (r_i - r_j)/|r_i - r_j|, overlap h = R_i + R_j - |r_i - r_j|,
@@ -358,40 +358,6 @@ def keep_worst(lo, hi, worst, max_overlap):
         max_overlap[lo] = max(max_overlap[lo], worst)
 
 
-@parallel
-def pair_forces(model, params, law, positions, velocities, angular_velocities, radii, masses,
-                materials, fixed, periodic_flag, periodic_length, start, partners, history,
-                pair_force, own, pair_torque_j, max_overlap, dt, nblock):
-    """Forces of every listed pair; zero (and history reset) for pairs not touching.
-
-    law : (address of the law loop (law_loop.law_address), workspaces (nblock, ...),
-    slots (nblock, 3, CAP), dirty (one byte per pair slot, law_loop.workspace)).
-    pair_force[k] [N] is the force on the first grain i of pair k and pair_torque_j[k]
-    [N m] the torque on its second grain j when j is in another block; own[i] (6) is
-    the sum of the forces and torques on i of the pairs it lists and of the pairs of
-    its block that list it, in gathering order.
-    max_overlap keeps the largest overlap / min(R_i, R_j) since the loop last read and
-    reset it (keep_worst: by block on the CPU, by grain on the GPU).
-    Returns the energies dissipated in the step, normal and tangential [J], summed over
-    ``nblock`` fixed blocks of grains (block_count) in block order.
-    """
-    n = positions.shape[0]
-    address, work, slots, dirty = law
-    if nblock == 1:    # no parallel region to enter (a few us per call); a plain int64 0
-        return _pair_block(np.int64(0), n, address, work[0], slots[0], dirty, model, params,
-                           positions, velocities, angular_velocities, radii, masses,
-                           materials, fixed, periodic_flag, periodic_length, start, partners,
-                           history, pair_force, own, pair_torque_j, max_overlap, dt)
-    sums = np.zeros((nblock, 2))
-    for b in prange(nblock):
-        sums[b, 0], sums[b, 1] = _pair_block(
-            b * n // nblock, (b + 1) * n // nblock, address, work[b], slots[b], dirty, model,
-            params, positions, velocities, angular_velocities, radii, masses, materials,
-            fixed, periodic_flag, periodic_length, start, partners, history, pair_force, own,
-            pair_torque_j, max_overlap, dt)
-    return _block_total(sums)
-
-
 @scalar
 def wall_gap(i, q, model, params, positions, radii, materials, wall_kind, wall_geometry,
              wall_offset, wall_material, wall_ids, wall_history, wall_force, wall_torque):
@@ -413,8 +379,9 @@ def wall_gap(i, q, model, params, positions, radii, materials, wall_kind, wall_g
 def wall_row(i, model, params, positions, velocities, angular_velocities, radii, masses,
              materials, wall_kind, wall_geometry, wall_offset, wall_velocity, wall_material,
              wall_start, wall_ids, wall_history, wall_force, wall_torque, max_overlap, dt):
-    """The wall contacts of grain i (the loop body of ``wall_forces``, shared with the
-    GPU kernels); returns the normal and tangential energy dissipated [J]."""
+    """The wall contacts of grain i, one after the other (the GPU kernels' loop body;
+    the CPU batches them, _wall_block); returns the normal and tangential energy
+    dissipated [J]."""
     dissipated_n = 0.0
     dissipated_t = 0.0
     worst = max_overlap[i]
@@ -522,33 +489,80 @@ def _wall_block(lo, hi, law, work, slots, model, params, positions, velocities,
     return dissipated_n, dissipated_t
 
 
-@parallel
-def wall_forces(model, params, law, positions, velocities, angular_velocities, radii, masses,
-                materials, wall_kind, wall_geometry, wall_offset, wall_velocity, wall_material,
-                wall_start, wall_ids, wall_history, wall_force, wall_torque, own, max_overlap,
-                dt, nblock):
-    """Forces of the walls on grains, per grain-wall candidate (R_j = infinity), batched
-    through the law loop as the pairs are (law as in pair_forces), and added to own[i]
-    (6) after the pairs' (pair_forces runs first and zeroes it).
+PAIRS = 1     # contact_forces' parts: the listed pairs, the wall contacts, or both
+WALLS = 2
 
-    Returns the energies dissipated in the step, normal and tangential [J] (summed as in
-    pair_forces).
+
+@block
+def _contact_block(lo, hi, parts, law, work, slots, dirty, model, params, positions,
+                   velocities, angular_velocities, radii, masses, materials, fixed,
+                   periodic_flag, periodic_length, start, partners, history, pair_force,
+                   pair_torque_j, wall_kind, wall_geometry, wall_offset, wall_velocity,
+                   wall_material, wall_start, wall_ids, wall_history, wall_force, wall_torque,
+                   own, max_overlap, dt):
+    """The pairs (_pair_block) then the wall contacts (_wall_block) of grains lo..hi-1,
+    as ``parts`` says; returns the energies."""
+    dissipated_n = 0.0
+    dissipated_t = 0.0
+    if parts & PAIRS:
+        dissipated_n, dissipated_t = _pair_block(
+            lo, hi, law, work, slots, dirty, model, params, positions, velocities,
+            angular_velocities, radii, masses, materials, fixed, periodic_flag,
+            periodic_length, start, partners, history, pair_force, own, pair_torque_j,
+            max_overlap, dt)
+    if parts & WALLS:
+        wn, wt = _wall_block(lo, hi, law, work, slots, model, params, positions, velocities,
+                             angular_velocities, radii, masses, materials, wall_kind,
+                             wall_geometry, wall_offset, wall_velocity, wall_material,
+                             wall_start, wall_ids, wall_history, wall_force, wall_torque, own,
+                             max_overlap, dt)
+        dissipated_n += wn
+        dissipated_t += wt
+    return dissipated_n, dissipated_t
+
+
+@parallel
+def contact_forces(model, params, law, positions, velocities, angular_velocities, radii,
+                   masses, materials, fixed, periodic_flag, periodic_length, start, partners,
+                   history, pair_force, pair_torque_j, wall_kind, wall_geometry, wall_offset,
+                   wall_velocity, wall_material, wall_start, wall_ids, wall_history,
+                   wall_force, wall_torque, own, max_overlap, dt, nblock, parts):
+    """Forces of every listed pair (zero, and history reset, for pairs not touching) and
+    of the walls on grains (per grain-wall candidate, R_j = infinity), each block of
+    grains in one parallel region: its pairs, then its wall contacts.
+
+    law : (address of the law loop (law_loop.law_address), workspaces (nblock, ...),
+    slots (nblock, 3, CAP), dirty (one byte per pair slot, law_loop.workspace)).
+    pair_force[k] [N] is the force on the first grain i of pair k and pair_torque_j[k]
+    [N m] the torque on its second grain j when j is in another block; own[i] (6) is
+    the sum of the forces and torques on i of the pairs it lists, of the pairs of its
+    block that list it, in gathering order, then of its wall contacts.
+    max_overlap keeps the largest overlap / min(R_i, R_j) (R_i against a wall) since the
+    loop last read and reset it (keep_worst: by block on the CPU, by grain on the GPU).
+    parts : PAIRS | WALLS for a step; PAIRS alone (which zeroes own first) or WALLS alone
+    (which adds to own) time or test one kind.
+    Returns the energies dissipated in the step, normal and tangential [J], summed over
+    ``nblock`` fixed blocks of grains (block_count) in block order.
     """
     n = positions.shape[0]
     address, work, slots, dirty = law
-    if nblock == 1:                  # as in pair_forces
-        return _wall_block(np.int64(0), n, address, work[0], slots[0], model, params,
-                           positions, velocities, angular_velocities, radii, masses,
-                           materials, wall_kind, wall_geometry, wall_offset, wall_velocity,
-                           wall_material, wall_start, wall_ids, wall_history, wall_force,
-                           wall_torque, own, max_overlap, dt)
+    if nblock == 1:    # no parallel region to enter (a few us per call); a plain int64 0
+        return _contact_block(
+            np.int64(0), n, parts, address, work[0], slots[0], dirty, model, params,
+            positions, velocities, angular_velocities, radii, masses, materials, fixed,
+            periodic_flag, periodic_length, start, partners, history, pair_force,
+            pair_torque_j, wall_kind, wall_geometry, wall_offset, wall_velocity,
+            wall_material, wall_start, wall_ids, wall_history, wall_force, wall_torque, own,
+            max_overlap, dt)
     sums = np.zeros((nblock, 2))
     for b in prange(nblock):
-        sums[b, 0], sums[b, 1] = _wall_block(
-            b * n // nblock, (b + 1) * n // nblock, address, work[b], slots[b], model, params,
-            positions, velocities, angular_velocities, radii, masses, materials, wall_kind,
-            wall_geometry, wall_offset, wall_velocity, wall_material, wall_start, wall_ids,
-            wall_history, wall_force, wall_torque, own, max_overlap, dt)
+        sums[b, 0], sums[b, 1] = _contact_block(
+            b * n // nblock, (b + 1) * n // nblock, parts, address, work[b], slots[b], dirty,
+            model, params, positions, velocities, angular_velocities, radii, masses,
+            materials, fixed, periodic_flag, periodic_length, start, partners, history,
+            pair_force, pair_torque_j, wall_kind, wall_geometry, wall_offset, wall_velocity,
+            wall_material, wall_start, wall_ids, wall_history, wall_force, wall_torque, own,
+            max_overlap, dt)
     return _block_total(sums)
 
 
@@ -591,7 +605,7 @@ def gather_pairs(i, mass, gravity, own, reverse_start, reverse_pairs, owned_from
     """Force [N] and torque [N m] on grain i from m_i g, own[i] and, one by one, the
     pairs k < owned_from that list it (those from k = owned_from on are already in
     own[i]), in this order.  The CPU's gather: own[i] holds the grain's wall contacts
-    too (wall_forces)."""
+    too (_wall_block)."""
     fx = mass * gravity[0] + own[i, 0]
     fy = mass * gravity[1] + own[i, 1]
     fz = mass * gravity[2] + own[i, 2]

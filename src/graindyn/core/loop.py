@@ -21,7 +21,7 @@ import math
 import numpy as np
 
 from .._jit import kernel
-from .contacts import pair_forces, wall_forces
+from .contacts import PAIRS, WALLS, contact_forces
 from .integrators import STAGES, after_force, before_force
 from .neighbors import rebuild
 from .walls import walls_advance
@@ -55,7 +55,7 @@ def new_clock(dt, skin, gravity):
 def evaluate_forces(model, params, law, grains, pairs, walls, periodic, gravity, dt, nblock):
     """All contact forces and the total force on each wall; returns the (normal,
     tangential) energy dissipated [J] and the power of the walls on the grains [W].
-    law: the batched law of the pair contacts (contacts.pair_forces);
+    law: the batched law of the contacts (contacts.contact_forces);
     nblock: blocks of grains handed to threads (contacts.block_count)."""
     (positions, velocities, angular_velocities, orientations, forces, torques, accelerations,
      angular_accelerations, radii, masses, inertias, materials, fixed, reference_positions,
@@ -66,13 +66,12 @@ def evaluate_forces(model, params, law, grains, pairs, walls, periodic, gravity,
      reference_offset, wall_start, wall_ids, wall_history, scratch_wall_start,
      scratch_wall_ids, scratch_wall_history, contact_force, contact_torque) = walls
     flag, lo, length = periodic
-    dn, dt_ = pair_forces(model, params, law, positions, velocities, angular_velocities, radii,
-                          masses, materials, fixed, flag, length, start, partners, history,
-                          pair_force, own, pair_torque_j, max_overlap, dt, nblock)
-    wn, wt = wall_forces(model, params, law, positions, velocities, angular_velocities, radii,
-                         masses, materials, kind, geometry, offset, velocity, material,
-                         wall_start, wall_ids, wall_history, contact_force, contact_torque,
-                         own, max_overlap, dt, nblock)
+    dn, dt_ = contact_forces(model, params, law, positions, velocities, angular_velocities,
+                             radii, masses, materials, fixed, flag, length, start, partners,
+                             history, pair_force, pair_torque_j, kind, geometry, offset,
+                             velocity, material, wall_start, wall_ids, wall_history,
+                             contact_force, contact_torque, own, max_overlap, dt, nblock,
+                             np.int64(PAIRS | WALLS))
     force[:] = 0.0
     power = 0.0
     for q in range(wall_start[masses.size]):       # every candidate, in grain order
@@ -80,7 +79,7 @@ def evaluate_forces(model, params, law, grains, pairs, walls, periodic, gravity,
         for d in range(3):
             force[w, d] -= contact_force[q, d]
             power += contact_force[q, d] * velocity[w, d]
-    return dn + wn, dt_ + wt, power
+    return dn, dt_, power
 
 
 @kernel

@@ -179,8 +179,10 @@ def _count_pairs(positions, radii, skin, cell, counts, cell_start, cell_items,
                  periodic_flag, periodic_length, start):
     n = positions.shape[0]
     for i in prange(n):
-        start[i + 1] = scan_grain(i, positions, radii, skin, cell, counts, cell_start,
-                                  cell_items, periodic_flag, periodic_length, False, start, 0)
+        # typed, not literal, arguments: one compile of scan_grain for both loops
+        start[i + 1] = scan_grain(np.int64(i), positions, radii, skin, cell, counts,
+                                  cell_start, cell_items, periodic_flag, periodic_length,
+                                  np.bool_(False), start, np.int64(0))
     start[0] = 0
     for i in range(n):
         start[i + 1] += start[i]
@@ -191,8 +193,8 @@ def _count_pairs(positions, radii, skin, cell, counts, cell_start, cell_items,
 def _fill_pairs(positions, radii, skin, cell, counts, cell_start, cell_items,
                 periodic_flag, periodic_length, start, partners):
     for i in prange(positions.shape[0]):
-        scan_grain(i, positions, radii, skin, cell, counts, cell_start, cell_items,
-                   periodic_flag, periodic_length, True, partners, start[i])
+        scan_grain(np.int64(i), positions, radii, skin, cell, counts, cell_start, cell_items,
+                   periodic_flag, periodic_length, np.bool_(True), partners, start[i])
 
 
 @inlined
@@ -252,8 +254,8 @@ def _wall_candidates(positions, radii, skin, kind, geometry, offset, wall_start,
     """Count (write=False) or list the walls within R_i + skin of each grain."""
     n = positions.shape[0]
     for i in prange(n):
-        k = wall_row(i, positions, radii, skin, kind, geometry, offset, write, wall_ids,
-                     wall_start[i])
+        k = wall_row(np.int64(i), positions, radii, skin, kind, geometry, offset, write,
+                     wall_ids, wall_start[i])
         if not write:
             wall_start[i + 1] = k
     if not write:
@@ -283,8 +285,10 @@ def rebuild(positions, radii, skin, periodic_flag, periodic_lo, periodic_length,
     cell_start, cell_items, cell = _cell_sort(positions, origin, size, counts)
     needed = _count_pairs(positions, radii, skin, cell, counts, cell_start, cell_items,
                           periodic_flag, periodic_length, scratch_start)
+    # write as a typed bool, not a literal: one compile for both calls
     wall_needed = _wall_candidates(positions, radii, skin, wall_kind, wall_geometry,
-                                   wall_offset, scratch_wall_start, scratch_wall_ids, False)
+                                   wall_offset, scratch_wall_start, scratch_wall_ids,
+                                   np.bool_(False))
     if needed > partners.size or wall_needed > wall_ids.size:
         return needed, wall_needed
     _fill_pairs(positions, radii, skin, cell, counts, cell_start, cell_items,
@@ -295,7 +299,7 @@ def rebuild(positions, radii, skin, periodic_flag, periodic_lo, periodic_length,
     history[:needed] = scratch_history[:needed]
     _reverse(start, partners, n, reverse_start, reverse_pairs)
     _wall_candidates(positions, radii, skin, wall_kind, wall_geometry, wall_offset,
-                     scratch_wall_start, scratch_wall_ids, True)
+                     scratch_wall_start, scratch_wall_ids, np.bool_(True))
     _carry_history(wall_start, wall_ids, wall_history, scratch_wall_start, scratch_wall_ids,
                    scratch_wall_history)
     wall_start[:] = scratch_wall_start

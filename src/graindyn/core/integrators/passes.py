@@ -51,6 +51,16 @@ def correct(integrator, stage, h, started, a_new, vel, acc, history, base, i, d)
 
 
 @scalar
+def component(d, value, x, y, z):
+    """(x, y, z) with component d replaced by ``value``."""
+    if d == 0:
+        return value, y, z
+    if d == 1:
+        return x, value, z
+    return x, y, value
+
+
+@scalar
 def turn(integrator, orientations, i, px, py, pz, wx, wy, wz, h):
     """Turn grain i by the rotation vector (px, py, pz) [rad]; leap_frog uses Omelyan's
     quaternion update with the half-step angular velocity (wx, wy, wz) [rad/s].
@@ -67,23 +77,25 @@ def turn(integrator, orientations, i, px, py, pz, wx, wy, wz, h):
         orientations[i, c] = q[c]
 
 
-@scalar
+@block_body
 def drift_grain(i, integrator, stage, dt, started, positions, velocities, angular_velocities,
                 orientations, accelerations, angular_accelerations, fixed, history):
     """Drift/predict grain i before the force evaluation of ``stage`` (the loop body of
-    ``before_force``, shared with the GPU kernels)."""
+    ``before_force``, shared with the GPU kernels).  Compiled once and LLVM-inlined
+    into before_force and _correct_rows: IR-inlined into both, it was typed twice and
+    made numba's inlining pass superlinear (cold start 85 -> 55 s with the single
+    call sites of drift and correct, BENCHMARKS.md)."""
     if fixed[i]:
         return
     rot = SLOTS[integrator]
     for d in range(3):
         positions[i, d] += drift(integrator, stage, dt, started, velocities, accelerations,
                                  history, 0, i, d)
-    px = drift(integrator, stage, dt, started, angular_velocities, angular_accelerations,
-               history, rot, i, 0)
-    py = drift(integrator, stage, dt, started, angular_velocities, angular_accelerations,
-               history, rot, i, 1)
-    pz = drift(integrator, stage, dt, started, angular_velocities, angular_accelerations,
-               history, rot, i, 2)
+    px = py = pz = 0.0
+    for d in range(3):       # one call site: numba inlines each site anew (compile time)
+        p = drift(integrator, stage, dt, started, angular_velocities, angular_accelerations,
+                  history, rot, i, d)
+        px, py, pz = component(d, p, px, py, pz)
     turn(integrator, orientations, i, px, py, pz, angular_velocities[i, 0],
          angular_velocities[i, 1], angular_velocities[i, 2], dt)
 
@@ -93,7 +105,7 @@ def before_force(integrator, stage, dt, started, positions, velocities, angular_
                  orientations, accelerations, angular_accelerations, fixed, history):
     """Drift/predict every free grain before the force evaluation of ``stage``."""
     for i in prange(positions.shape[0]):
-        drift_grain(i, integrator, stage, dt, started, positions, velocities,
+        drift_grain(np.int64(i), integrator, stage, dt, started, positions, velocities,
                     angular_velocities, orientations, accelerations, angular_accelerations,
                     fixed, history)
 
@@ -120,14 +132,12 @@ def correct_grain(i, integrator, stage, dt, started, dim, f, forces, torques, ma
                 a = 0.0
             positions[i, d] += correct(integrator, stage, dt, started, a, velocities,
                                        accelerations, history, 0, i, d)
-        alpha_x = 0.0 if dim == 2 else f[3] * inverse_inertia
-        alpha_y = 0.0 if dim == 2 else f[4] * inverse_inertia
-        px = correct(integrator, stage, dt, started, alpha_x, angular_velocities,
-                     angular_accelerations, history, rot, i, 0)
-        py = correct(integrator, stage, dt, started, alpha_y, angular_velocities,
-                     angular_accelerations, history, rot, i, 1)
-        pz = correct(integrator, stage, dt, started, f[5] * inverse_inertia,
-                     angular_velocities, angular_accelerations, history, rot, i, 2)
+        px = py = pz = 0.0
+        for d in range(3):   # one call site, as in drift_grain
+            alpha = 0.0 if dim == 2 and d < 2 else f[3 + d] * inverse_inertia
+            p = correct(integrator, stage, dt, started, alpha, angular_velocities,
+                        angular_accelerations, history, rot, i, d)
+            px, py, pz = component(d, p, px, py, pz)
         if px != 0.0 or py != 0.0 or pz != 0.0:
             turn(np.int64(VELOCITY_VERLET), orientations, i, px, py, pz, 0.0, 0.0, 0.0, dt)
     d2 = 0.0
@@ -167,7 +177,7 @@ def _correct_rows(lo, hi, integrator, stage, dt, started, dim, gravity, own, sta
             accelerations, angular_accelerations, fixed, periodic_flag, periodic_length,
             history)
         if drift_next:
-            drift_grain(i, integrator, np.int64(0), dt, True, positions, velocities,
+            drift_grain(i, integrator, np.int64(0), dt, np.bool_(True), positions, velocities,
                         angular_velocities, orientations, accelerations, angular_accelerations,
                         fixed, history)
         top_d2 = max(top_d2, d2)
