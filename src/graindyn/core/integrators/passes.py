@@ -130,8 +130,10 @@ def correct_grain(i, integrator, stage, dt, started, dim, f, forces, torques, ma
             a = f[d] * inverse_mass
             if dim == 2 and d == 2:
                 a = 0.0
-            positions[i, d] += correct(integrator, stage, dt, started, a, velocities,
-                                       accelerations, history, 0, i, d)
+            step = correct(integrator, stage, dt, started, a, velocities, accelerations,
+                           history, 0, i, d)
+            if step != 0.0:     # folds away where the scheme's step is 0 (x + 0.0 does not)
+                positions[i, d] += step
         px = py = pz = 0.0
         for d in range(3):   # one call site, as in drift_grain
             alpha = 0.0 if dim == 2 and d < 2 else f[3 + d] * inverse_inertia
