@@ -180,7 +180,7 @@ def test_block_count_keeps_tiny_systems_on_one_block():
     else one per thread at least, about 2048 grains each, at most MAX_BLOCKS."""
     from graindyn.core.contacts import MAX_BLOCKS, SERIAL, block_count
     assert block_count(10**6, 1) == 1
-    assert block_count(280, 2) == 1
+    assert block_count(200, 2) == 1
     assert block_count(2 * SERIAL - 1, 2) == 1
     assert block_count(2 * SERIAL, 2) == 2
     assert block_count(1000, 2) == 2

@@ -32,7 +32,7 @@ from .walls import wall_distance
 
 # most blocks of grains a pass hands to threads (Simulation.block_scratch has this size)
 MAX_BLOCKS = 64
-SERIAL = 256        # fewer grains per thread than this: one block (block_count)
+SERIAL = 128        # fewer grains per thread than this: one block (block_count)
 
 
 @inlined
@@ -579,10 +579,11 @@ def block_count(n, threads):
     """Number of fixed blocks of grains the passes hand to threads: one per thread at
     least, about 2048 grains each, at most MAX_BLOCKS; a single block on one thread
     (no parallel region is entered, and every pair is added to both its grains as it
-    is computed) and below SERIAL grains per thread, where a step is a few tens of
-    microseconds: the 280-grain bed ran as fast on two threads as on one (0.51 and
-    0.52 s), and twice as slow when the second thread had to be woken for each of the
-    three parallel regions of a step (BENCHMARKS.md).  Each block is one call of a
+    is computed) and below SERIAL grains per thread, where a step is a few
+    microseconds and entering a parallel region (about 2 us) costs more than it saves.
+    The 280-grain bed in two blocks on two threads: 0.40-0.41 s against 0.45-0.47 s
+    in one block (session 10), but 0.80-0.82 s at another time of the same day (cause
+    not found; BENCHMARKS.md).  Each block is one call of a
     compiled function, so small systems get few.  The blocks depend only on n and the
     thread count, so sums over them are the same from run to run."""
     if threads == 1 or n < SERIAL * threads:
