@@ -256,8 +256,18 @@ def workspace(blocks, history_size):
     the pair loop's dirty flags (one byte per pair slot, sized by ``prepare``)."""
     if history_size > MAX_HISTORY:
         raise ValueError(f"a model keeps at most {MAX_HISTORY} history values")
-    return (np.zeros((blocks, workspace_rows(history_size) * CAP)),
+    return (_aligned_zeros((blocks, workspace_rows(history_size) * CAP)),
             np.zeros((blocks, 3, CAP), np.int64), np.ones(0, np.uint8))
+
+
+def _aligned_zeros(shape):
+    """Zeros whose first element sits on a 64-byte boundary, as every row of a workspace
+    then does (CAP doubles): the law loop's AVX-512 loads and stores no longer straddle
+    two cache lines (numpy gave 48 mod 64: 6.1 against 5.9 ns per pair contact)."""
+    size = int(np.prod(shape))
+    buffer = np.zeros(size + 8)
+    first = (-buffer.ctypes.data % 64) // 8
+    return buffer[first:first + size].reshape(shape)
 
 
 def prepare(law, params, pair_capacity):
