@@ -177,12 +177,15 @@ def test_batched_walls_equal_contact_by_contact(model, one_thread):
 
 def test_block_count_keeps_tiny_systems_on_one_block():
     """One block on one thread and below SERIAL grains per thread (no parallel region);
-    else one per thread at least, about 2048 grains each, at most MAX_BLOCKS."""
+    else one per thread at least, about 2048 grains each, at most two per thread and
+    MAX_BLOCKS."""
     from graindyn.core.contacts import MAX_BLOCKS, SERIAL, block_count
     assert block_count(10**6, 1) == 1
     assert block_count(200, 2) == 1
     assert block_count(2 * SERIAL - 1, 2) == 1
     assert block_count(2 * SERIAL, 2) == 2
     assert block_count(1000, 2) == 2
-    assert block_count(100_000, 2) == 100_000 // 2048
-    assert block_count(10**7, 4) == MAX_BLOCKS
+    assert block_count(10_000, 2) == 4
+    assert block_count(100_000, 2) == 4
+    assert block_count(10**7, 4) == 8
+    assert block_count(10**7, MAX_BLOCKS) == MAX_BLOCKS

@@ -577,18 +577,21 @@ def contact_forces(model, params, law, positions, velocities, angular_velocities
 
 def block_count(n, threads):
     """Number of fixed blocks of grains the passes hand to threads: one per thread at
-    least, about 2048 grains each, at most MAX_BLOCKS; a single block on one thread
-    (no parallel region is entered, and every pair is added to both its grains as it
-    is computed) and below SERIAL grains per thread, where a step is a few
-    microseconds and entering a parallel region (about 2 us) costs more than it saves.
-    The 280-grain bed in two blocks on two threads: 0.40-0.41 s against 0.45-0.47 s
-    in one block (session 10), but 0.80-0.82 s at another time of the same day (cause
-    not found; BENCHMARKS.md).  Each block is one call of a
-    compiled function, so small systems get few.  The blocks depend only on n and the
+    least, about 2048 grains each, at most two per thread and MAX_BLOCKS.  More blocks
+    let a thread that runs ahead take another (the 10 000-grain bed on 2 threads, in a
+    phase where one thread was slow: 0.97-1.04 s in 4 blocks, 1.27-1.33 s in 2), but
+    cut more pairs across blocks, whose forces the gather must read back (1e5 grains
+    on 2 threads, 500 steps: 3.42-3.48 s in 4 blocks, 3.8-5.0 s in 48).  A single
+    block on one thread (no parallel region is entered, and every pair is added to
+    both its grains as it is computed) and below SERIAL grains per thread, where a
+    step is a few microseconds and entering a parallel region (about 2 us) costs more
+    than it saves: the 280-grain bed in two blocks on two threads took 0.40-0.41 s
+    against 0.45-0.47 s in one (session 10), but 0.80-0.82 s at another time of the
+    same day (cause not found; BENCHMARKS.md).  The blocks depend only on n and the
     thread count, so sums over them are the same from run to run."""
     if threads == 1 or n < SERIAL * threads:
         return 1
-    return max(1, min(MAX_BLOCKS, max(threads, n // 2048)))
+    return min(MAX_BLOCKS, max(threads, min(2 * threads, n // 2048)))
 
 
 @scalar
