@@ -189,3 +189,15 @@ def test_block_count_keeps_tiny_systems_on_one_block():
     assert block_count(100_000, 2) == 4
     assert block_count(10**7, 4) == 8
     assert block_count(10**7, MAX_BLOCKS) == MAX_BLOCKS
+
+
+def test_workspace_rows_start_on_cache_lines():
+    """Every block's workspace and every row of it (CAP doubles) start on a 64-byte
+    boundary, so the law loop's 512-bit accesses never straddle two cache lines."""
+    from graindyn.core.law_loop import CAP
+    for blocks in (1, 3, 7):
+        work = workspace(blocks, 4)[0]
+        assert work.flags.c_contiguous and not work.any()
+        for b in range(blocks):
+            assert work[b].ctypes.data % 64 == 0
+        assert (CAP * work.itemsize) % 64 == 0
