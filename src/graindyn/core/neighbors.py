@@ -233,6 +233,15 @@ def _reverse(start, partners, n, reverse_start, reverse_pairs):
         fill[j] += 1
 
 
+@kernel
+def list_owners(start, n, owner):
+    """owner[k] = i for every pair k that grain i lists (the first grain of each pair,
+    read by the CPU's pair walk, contacts._pair_block)."""
+    for i in range(n):
+        for k in range(start[i], start[i + 1]):
+            owner[k] = i
+
+
 @inlined
 def wall_row(i, positions, radii, skin, kind, geometry, offset, write, wall_ids, base):
     """Count the walls within R_i + skin of grain i, writing them at wall_ids[base:]
@@ -276,6 +285,9 @@ def rebuild(positions, radii, skin, periodic_flag, periodic_lo, periodic_length,
 
     Returns (pairs needed, wall contacts needed); when either exceeds its capacity
     nothing but the wrapped positions has changed and the caller must grow the arrays.
+    The new lists are made in the scratch arrays, then copied over the old ones;
+    scratch_partners then holds the first grain of each pair until the next rebuild
+    (list_owners).
     """
     n = positions.shape[0]
     wrap_positions(positions, periodic_flag, periodic_lo, periodic_length)
@@ -298,6 +310,7 @@ def rebuild(positions, radii, skin, periodic_flag, periodic_lo, periodic_length,
     partners[:needed] = scratch_partners[:needed]
     history[:needed] = scratch_history[:needed]
     _reverse(start, partners, n, reverse_start, reverse_pairs)
+    list_owners(start, n, scratch_partners)
     _wall_candidates(positions, radii, skin, wall_kind, wall_geometry, wall_offset,
                      scratch_wall_start, scratch_wall_ids, np.bool_(True))
     _carry_history(wall_start, wall_ids, wall_history, scratch_wall_start, scratch_wall_ids,

@@ -14,6 +14,7 @@ from . import loop
 from .contacts import block_count
 from .integrators import SCHEMES, SLOTS, history_names, integrator_id
 from .law_loop import law_address, prepare, workspace as law_workspace
+from .neighbors import list_owners
 from .species import ContactModel, Material
 from .timestep import time_step_report
 from .triggers import Periodic
@@ -283,6 +284,8 @@ class Simulation:
             self._law = (law_address(self.model_ids), *law_workspace(blocks, self.history_size))
         while True:
             self._law = prepare(self._law, self.params, self.pairs[1].size)
+            # the pair walk's first grains (kept by each rebuild), whatever set the lists
+            list_owners(self.pairs[0], self.state.n, self.pairs[4])
             status, done = loop.run_chunk(self.model_ids, self.params, self._law, self._grains(),
                                           self.pairs, self._walls(), self._periodic(),
                                           self.clock, self.counters, self.integrator_history,
