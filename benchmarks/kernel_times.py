@@ -55,7 +55,8 @@ def main(argv):
             s += contact_forces(model, params, law, g[0], g[1], g[2], g[8], g[9], g[11],
                                 g[12], p[0], p[2], pairs[0], pairs[1], pairs[4], pairs[2],
                                 pairs[8], pairs[10], w[0], w[1], w[5], w[6], w[7], w[10],
-                                w[11], w[12], w[16], w[17], pairs[9], g[14], clock[loop.DT],
+                                w[11], w[14], w[12], w[16], w[17], pairs[9], g[14],
+                                clock[loop.DT],
                                 scratch.size, part)[0]
         return s
 

@@ -81,7 +81,7 @@ def forces_args(sim, law):
     g, w, p, per = sim._grains(), sim._walls(), sim.pairs, sim._periodic()
     return (sim.model_ids, sim.params, law, g[0], g[1], g[2], g[8], g[9], g[11], g[12],
             per[0], per[2], p[0], p[1], p[4], p[2], p[8], p[10], w[0], w[1], w[5], w[6], w[7],
-            w[10], w[11], w[12], w[16], w[17], p[9], g[14])
+            w[10], w[11], w[14], w[12], w[16], w[17], p[9], g[14])
 
 
 def pairs_only(sim, law, nblock):

@@ -471,44 +471,45 @@ def _flush_walls(law, work, count, slots, wall_history, wall_force, wall_torque,
 @block
 def _wall_block(lo, hi, law, work, slots, model, params, positions, velocities,
                 angular_velocities, radii, masses, materials, wall_kind, wall_geometry,
-                wall_offset, wall_velocity, wall_material, wall_start, wall_ids, wall_history,
-                wall_force, wall_torque, own, max_overlap, dt):
+                wall_offset, wall_velocity, wall_material, wall_start, wall_ids, wall_owner,
+                wall_history, wall_force, wall_torque, own, max_overlap, dt):
     """The wall contacts of grains lo..hi-1 (as wall_row, to the bit): the touching ones
     gathered CAP at a time into ``work`` and evaluated by the law loop, and added to
-    own; returns the energies."""
+    own; returns the energies.  One loop over the candidates q, their grains read from
+    ``wall_owner`` (as the pair walk, _pair_block)."""
     dissipated_n = 0.0
     dissipated_t = 0.0
     count = 0
     worst = 0.0
-    for i in range(lo, hi):
+    for q in range(wall_start[lo], wall_start[hi]):
+        i = wall_owner[q]
         r_i = radii[i]
-        for q in range(wall_start[i], wall_start[i + 1]):
-            overlap, nx, ny, nz, lost = wall_gap(
-                i, q, model, params, positions, radii, materials, wall_kind, wall_geometry,
-                wall_offset, wall_material, wall_ids, wall_history, wall_force, wall_torque)
-            if overlap <= 0.0:
-                dissipated_t += lost
-                continue
-            w = wall_ids[q]
-            worst = max(worst, overlap / r_i)
-            lever = r_i - overlap
-            _stage(work, count, params, materials[i], wall_material[w], wall_history, q,
-                   overlap, lever, 0.0, r_i, masses[i], nx, ny, nz,
-                   velocities[i, 0] - wall_velocity[w, 0],
-                   velocities[i, 1] - wall_velocity[w, 1],
-                   velocities[i, 2] - wall_velocity[w, 2], lever * angular_velocities[i, 0],
-                   lever * angular_velocities[i, 1], lever * angular_velocities[i, 2],
-                   angular_velocities[i, 0], angular_velocities[i, 1],
-                   angular_velocities[i, 2])
-            slots[0, count] = q
-            slots[1, count] = i
-            count += 1
-            if count == CAP:
-                dn, dt_ = _flush_walls(law, work, count, slots, wall_history, wall_force,
-                                       wall_torque, own, dt)
-                dissipated_n += dn
-                dissipated_t += dt_
-                count = 0
+        overlap, nx, ny, nz, lost = wall_gap(
+            i, q, model, params, positions, radii, materials, wall_kind, wall_geometry,
+            wall_offset, wall_material, wall_ids, wall_history, wall_force, wall_torque)
+        if overlap <= 0.0:
+            dissipated_t += lost
+            continue
+        w = wall_ids[q]
+        worst = max(worst, overlap / r_i)
+        lever = r_i - overlap
+        _stage(work, count, params, materials[i], wall_material[w], wall_history, q,
+               overlap, lever, 0.0, r_i, masses[i], nx, ny, nz,
+               velocities[i, 0] - wall_velocity[w, 0],
+               velocities[i, 1] - wall_velocity[w, 1],
+               velocities[i, 2] - wall_velocity[w, 2], lever * angular_velocities[i, 0],
+               lever * angular_velocities[i, 1], lever * angular_velocities[i, 2],
+               angular_velocities[i, 0], angular_velocities[i, 1],
+               angular_velocities[i, 2])
+        slots[0, count] = q
+        slots[1, count] = i
+        count += 1
+        if count == CAP:
+            dn, dt_ = _flush_walls(law, work, count, slots, wall_history, wall_force,
+                                   wall_torque, own, dt)
+            dissipated_n += dn
+            dissipated_t += dt_
+            count = 0
     if count > 0:
         dn, dt_ = _flush_walls(law, work, count, slots, wall_history, wall_force, wall_torque,
                                own, dt)
@@ -527,8 +528,8 @@ def _contact_block(lo, hi, parts, law, work, slots, dirty, model, params, positi
                    velocities, angular_velocities, radii, masses, materials, fixed,
                    periodic_flag, periodic_length, start, partners, owner, history,
                    pair_force, pair_torque_j, wall_kind, wall_geometry, wall_offset, wall_velocity,
-                   wall_material, wall_start, wall_ids, wall_history, wall_force, wall_torque,
-                   own, max_overlap, dt):
+                   wall_material, wall_start, wall_ids, wall_owner, wall_history, wall_force,
+                   wall_torque, own, max_overlap, dt):
     """The pairs (_pair_block) then the wall contacts (_wall_block) of grains lo..hi-1,
     as ``parts`` says; returns the energies."""
     dissipated_n = 0.0
@@ -543,8 +544,8 @@ def _contact_block(lo, hi, parts, law, work, slots, dirty, model, params, positi
         wn, wt = _wall_block(lo, hi, law, work, slots, model, params, positions, velocities,
                              angular_velocities, radii, masses, materials, wall_kind,
                              wall_geometry, wall_offset, wall_velocity, wall_material,
-                             wall_start, wall_ids, wall_history, wall_force, wall_torque, own,
-                             max_overlap, dt)
+                             wall_start, wall_ids, wall_owner, wall_history, wall_force,
+                             wall_torque, own, max_overlap, dt)
         dissipated_n += wn
         dissipated_t += wt
     return dissipated_n, dissipated_t
@@ -554,13 +555,14 @@ def _contact_block(lo, hi, parts, law, work, slots, dirty, model, params, positi
 def contact_forces(model, params, law, positions, velocities, angular_velocities, radii,
                    masses, materials, fixed, periodic_flag, periodic_length, start, partners,
                    owner, history, pair_force, pair_torque_j, wall_kind, wall_geometry,
-                   wall_offset, wall_velocity, wall_material, wall_start, wall_ids,
+                   wall_offset, wall_velocity, wall_material, wall_start, wall_ids, wall_owner,
                    wall_history, wall_force, wall_torque, own, max_overlap, dt, nblock, parts):
     """Forces of every listed pair (zero, and history reset, for pairs not touching) and
     of the walls on grains (per grain-wall candidate, R_j = infinity), each block of
     grains in one parallel region: its pairs, then its wall contacts.
 
-    owner[k] : the first grain of pair k (neighbors.list_owners).
+    owner[k], wall_owner[q] : the grain of pair k that lists it, of wall candidate q
+    (neighbors.list_owners).
     law : (address of the law loop (law_loop.law_address), workspaces (nblock, ...),
     slots (nblock, 3, CAP), dirty (one byte per pair slot, law_loop.workspace)).
     pair_force[k] [N] is the force on the first grain i of pair k and pair_torque_j[k]
@@ -582,17 +584,17 @@ def contact_forces(model, params, law, positions, velocities, angular_velocities
             positions, velocities, angular_velocities, radii, masses, materials, fixed,
             periodic_flag, periodic_length, start, partners, owner, history, pair_force,
             pair_torque_j, wall_kind, wall_geometry, wall_offset, wall_velocity,
-            wall_material, wall_start, wall_ids, wall_history, wall_force, wall_torque, own,
-            max_overlap, dt)
+            wall_material, wall_start, wall_ids, wall_owner, wall_history, wall_force, wall_torque,
+            own, max_overlap, dt)
     sums = np.zeros((nblock, 2))
     for b in prange(nblock):
         sums[b, 0], sums[b, 1] = _contact_block(
             b * n // nblock, (b + 1) * n // nblock, parts, address, work[b], slots[b], dirty,
             model, params, positions, velocities, angular_velocities, radii, masses,
             materials, fixed, periodic_flag, periodic_length, start, partners, owner,
-            history, pair_force, pair_torque_j, wall_kind, wall_geometry, wall_offset, wall_velocity,
-            wall_material, wall_start, wall_ids, wall_history, wall_force, wall_torque, own,
-            max_overlap, dt)
+            history, pair_force, pair_torque_j, wall_kind, wall_geometry, wall_offset,
+            wall_velocity, wall_material, wall_start, wall_ids, wall_owner, wall_history,
+            wall_force, wall_torque, own, max_overlap, dt)
     return _block_total(sums)
 
 

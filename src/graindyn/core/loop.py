@@ -68,10 +68,10 @@ def evaluate_forces(model, params, law, grains, pairs, walls, periodic, gravity,
     flag, lo, length = periodic
     dn, dt_ = contact_forces(model, params, law, positions, velocities, angular_velocities,
                              radii, masses, materials, fixed, flag, length, start, partners,
-                             scratch_partners, history, pair_force, pair_torque_j, kind, geometry, offset,
-                             velocity, material, wall_start, wall_ids, wall_history,
-                             contact_force, contact_torque, own, max_overlap, dt, nblock,
-                             np.int64(PAIRS | WALLS))
+                             scratch_partners, history, pair_force, pair_torque_j, kind, geometry,
+                             offset, velocity, material, wall_start, wall_ids, scratch_wall_ids,
+                             wall_history, contact_force, contact_torque, own, max_overlap, dt,
+                             nblock, np.int64(PAIRS | WALLS))
     force[:] = 0.0
     power = 0.0
     for q in range(wall_start[masses.size]):       # every candidate, in grain order

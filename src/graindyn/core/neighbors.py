@@ -235,8 +235,8 @@ def _reverse(start, partners, n, reverse_start, reverse_pairs):
 
 @kernel
 def list_owners(start, n, owner):
-    """owner[k] = i for every pair k that grain i lists (the first grain of each pair,
-    read by the CPU's pair walk, contacts._pair_block)."""
+    """owner[k] = i for every pair (or wall candidate) k that grain i lists, read by
+    the CPU's walks over pairs and wall candidates (contacts._pair_block, _wall_block)."""
     for i in range(n):
         for k in range(start[i], start[i + 1]):
             owner[k] = i
@@ -286,8 +286,8 @@ def rebuild(positions, radii, skin, periodic_flag, periodic_lo, periodic_length,
     Returns (pairs needed, wall contacts needed); when either exceeds its capacity
     nothing but the wrapped positions has changed and the caller must grow the arrays.
     The new lists are made in the scratch arrays, then copied over the old ones;
-    scratch_partners then holds the first grain of each pair until the next rebuild
-    (list_owners).
+    scratch_partners and scratch_wall_ids then hold the grain of each pair and wall
+    candidate until the next rebuild (list_owners).
     """
     n = positions.shape[0]
     wrap_positions(positions, periodic_flag, periodic_lo, periodic_length)
@@ -318,6 +318,7 @@ def rebuild(positions, radii, skin, periodic_flag, periodic_lo, periodic_length,
     wall_start[:] = scratch_wall_start
     wall_ids[:wall_needed] = scratch_wall_ids[:wall_needed]
     wall_history[:wall_needed] = scratch_wall_history[:wall_needed]
+    list_owners(wall_start, n, scratch_wall_ids)
     reference_positions[:] = positions
     reference_offset[:] = wall_offset
     return needed, wall_needed

@@ -284,8 +284,9 @@ class Simulation:
             self._law = (law_address(self.model_ids), *law_workspace(blocks, self.history_size))
         while True:
             self._law = prepare(self._law, self.params, self.pairs[1].size)
-            # the pair walk's first grains (kept by each rebuild), whatever set the lists
+            # the grains of the pair and wall walks (kept by each rebuild), whatever set the lists
             list_owners(self.pairs[0], self.state.n, self.pairs[4])
+            list_owners(self.wall_contacts[0], self.state.n, self.wall_contacts[4])
             status, done = loop.run_chunk(self.model_ids, self.params, self._law, self._grains(),
                                           self.pairs, self._walls(), self._periodic(),
                                           self.clock, self.counters, self.integrator_history,
