@@ -1,7 +1,7 @@
 """graindyn side of the LAMMPS benchmark (../shared/bench/run_all.py --custom ...).
 
     python benchmarks/lammps_bed.py STATE CYL SIZE E e DT SKIN WARM STEPS THREADS [LAWS]
-                                    [--orientations]
+                                    [--orientations] [--file-order]
 
 Loads the settled bed STATE (x y z r per line, SI), builds the same container (CYL 0:
 box [0, SIZE]^2 with a floor at z = 0 and an open top; CYL 1: cylinder of radius SIZE
@@ -12,6 +12,9 @@ and STEPS timed steps on THREADS threads, and prints `wall <s>`, `zpp <contacts 
 grain>`, particle-steps/s and peak memory.  LAMMPS's granular atoms carry no
 orientation, so the grains' orientations are not turned (Simulation(orientations=False),
 the same trajectory) unless --orientations is given (graindyn's default).
+The grains are put in cell order on loading (graindyn.cell_order, cells of the
+neighbour cutoff 2 R_max + SKIN), as LAMMPS sorts its atoms into bins (`atom_modify
+sort`, on by default); --file-order keeps the order of STATE.
 
 LAWS (optional, not used by run_all.py) swaps the contact model, to time another law on
 the same bed: "normal,damping,tangential[,rolling[,twisting]]".  The linear and
@@ -26,13 +29,17 @@ import numpy as np
 
 
 def bed(state_file, cyl, size, young, rest, dt, skin, laws=("hertz", "tsuji", "mindlin"),
-        orientations=False):
-    """The Simulation of the benchmark bed (arguments as on the command line)."""
+        orientations=False, sort=True):
+    """The Simulation of the benchmark bed (arguments as on the command line); with
+    ``sort``, its grains in cell order (cells of the neighbour cutoff)."""
     import graindyn as gd
 
     data = np.loadtxt(state_file, ndmin=2)
     size = float(size)
     state = gd.State.create(data[:, :3], data[:, 3], 2650.0)
+    if sort:
+        state = state.reordered(gd.cell_order(state.positions,
+                                              2.0 * state.radii.max() + float(skin)))
     grain = gd.Material("bed", density=2650.0, youngs_modulus=float(young), poisson_ratio=0.3,
                         restitution=float(rest), friction_sliding=0.5, tangential_damping=1.0,
                         kn=2e3, kt=2e3 / 3, alpha_n=0.3, alpha_t=0.3, gamma_n=1e4,
@@ -51,7 +58,8 @@ def bed(state_file, cyl, size, young, rest, dt, skin, laws=("hertz", "tsuji", "m
 
 def main(argv):
     orientations = "--orientations" in argv
-    argv = [a for a in argv if a != "--orientations"]
+    sort = "--file-order" not in argv
+    argv = [a for a in argv if a not in ("--orientations", "--file-order")]
     if len(argv) not in (10, 11):
         sys.exit(__doc__)
     state_file, cyl, size, young, rest, dt, skin, warm, steps, threads = argv[:10]
@@ -61,7 +69,7 @@ def main(argv):
     numba.set_num_threads(int(threads))
     from graindyn.analysis.packing import coordination_number
 
-    sim = bed(state_file, cyl, size, young, rest, dt, skin, laws, orientations)
+    sim = bed(state_file, cyl, size, young, rest, dt, skin, laws, orientations, sort)
     state = sim.state
     sim.run(steps=int(warm))
     t0 = time.perf_counter()

@@ -7,10 +7,10 @@ __version__ = "0.1.0"
 from .core.ensemble import Ensemble
 from .core.simulation import Simulation, SimulationError
 from .core.species import ContactModel, Material
-from .core.state import State, sample_radii
+from .core.state import State, cell_order, sample_radii
 from .core.triggers import EnergyRatioBelow, MaxSpeedBelow, Periodic
 from .core.walls import Cylinder, Motion, Periodic as PeriodicBoundary, Plane, box
 
 __all__ = ["Simulation", "SimulationError", "Ensemble", "ContactModel", "Material", "State",
-           "sample_radii", "EnergyRatioBelow", "MaxSpeedBelow", "Periodic", "Cylinder",
+           "cell_order", "sample_radii", "EnergyRatioBelow", "MaxSpeedBelow", "Periodic", "Cylinder",
            "Motion", "PeriodicBoundary", "Plane", "box", "__version__"]
