@@ -22,8 +22,9 @@ import numpy as np
 
 
 def tiled(state_file, size, nx, ny, backend="cpu", out=None):
-    """The settled bed of ``state_file`` repeated nx x ny times in one box, with the
-    LAMMPS-benchmark physics (Hertz, Mindlin, Tsuji; dt 2e-6 s): a Simulation."""
+    """The settled bed of ``state_file`` repeated nx x ny times in one box, its grains in
+    cell order, with the LAMMPS-benchmark physics (Hertz, Mindlin, Tsuji; dt 2e-6 s): a
+    Simulation."""
     import graindyn as gd
 
     bed = np.loadtxt(state_file, ndmin=2)
@@ -33,6 +34,9 @@ def tiled(state_file, size, nx, ny, backend="cpu", out=None):
     if out is not None:
         np.savetxt(out, np.column_stack((positions, radii)))
     state = gd.State.create(positions, radii, 2650.0)
+    # tile after tile, a grain's neighbours across a tile edge would lie far in index:
+    # cell order, as lammps_bed.py loads its beds (cells of the neighbour cutoff)
+    state = state.reordered(gd.cell_order(state.positions, 2.0 * radii.max() + 1e-4))
     grain = gd.Material("bed", density=2650.0, youngs_modulus=1e8, poisson_ratio=0.3,
                         restitution=0.9, friction_sliding=0.5, tangential_damping=1.0)
     walls = gd.box((0.0, 0.0, 0.0), (nx * size, ny * size, 10 * size))
