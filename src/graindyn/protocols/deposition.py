@@ -12,7 +12,7 @@ import numpy as np
 from ..config import build
 from ..config.models import BoxContainer, Config
 from ..core.simulation import Simulation
-from ..core.state import State
+from ..core.state import State, cell_order
 from ..core.triggers import EnergyRatioBelow, MaxSpeedBelow
 from .prepare import BoxRegion, CylinderRegion, lattice_insertion, random_insertion, \
     settle_report
@@ -65,6 +65,10 @@ class Deposition:
             positions, radii = random_insertion(
                 radii, self._region(solid / (p.packing_fraction * self.cross_section)), rng,
                 self.dim)
+            # inserted largest first, at random places: put them cell by cell (cells of
+            # about the neighbour cutoff), so that touching grains sit at nearby indices
+            order = cell_order(positions, 2.2 * radii.max())
+            positions, radii = positions[order], radii[order]
         else:
             spacing = 2 * radii.max() * (1 + p.lattice_gap)
             per_layer = max(1.0, (self.cross_section / spacing ** (self.dim - 1)) * 0.7)
