@@ -201,3 +201,26 @@ def test_workspace_rows_start_on_cache_lines():
         for b in range(blocks):
             assert work[b].ctypes.data % 64 == 0
         assert (CAP * work.itemsize) % 64 == 0
+
+
+def test_grains_of_the_walks_are_refilled_before_every_chunk(one_thread):
+    """The walks read each pair's and wall candidate's grain from arrays the rebuild
+    fills (neighbors.list_owners, kept in the rebuild's scratch between rebuilds).
+    Scratch overwritten between two runs (as a snapshot of another version or the GPU
+    may leave it) must not change the trajectory: Simulation refills them."""
+    walls = gd.box((0.0, 0.0, 0.0), (6e-3, 6e-3, 6e-3))
+    runs = []
+    for scribble in (False, True):
+        sim = bed(("hertz", "tsuji", "mindlin"), walls)
+        sim.run(steps=20)
+        if scribble:
+            sim.pairs[4][:] = 0
+            sim.wall_contacts[4][:] = 0
+        sim.run(steps=20)
+        runs.append(sim)
+    clean, scribbled = runs
+    assert clean.rebuilds == scribbled.rebuilds
+    assert len(clean.wall_contacts_active()[0]) > 0
+    np.testing.assert_array_equal(scribbled.state.positions, clean.state.positions)
+    np.testing.assert_array_equal(scribbled.state.angular_velocities,
+                                  clean.state.angular_velocities)
