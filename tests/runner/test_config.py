@@ -116,3 +116,19 @@ def test_integrator_section_reaches_the_simulation(small_config):
 def test_study_command_is_wired():
     result = runner.invoke(app, ["study", "integrators", "--help"])
     assert result.exit_code == 0 and "order-of-accuracy" in result.output
+
+
+def test_deposition_puts_randomly_inserted_grains_in_cell_order(small_config):
+    """Random insertion places grains largest first at random places; the deposition
+    hands them to the simulation cell by cell (graindyn.cell_order)."""
+    import numpy as np
+
+    from graindyn import cell_order
+    from graindyn.protocols.deposition import Deposition
+
+    small_config["protocol"]["insertion"] = "random"
+    sim = Deposition(Config.model_validate(small_config)).create(np.random.default_rng(5))
+    positions, radii = sim.state.positions, sim.state.radii
+    assert not np.all(np.diff(radii) <= 0.0)          # no longer largest first
+    np.testing.assert_array_equal(cell_order(positions, 2.2 * radii.max()),
+                                  np.arange(radii.size))
