@@ -317,8 +317,7 @@ def _flush(law, work, count, slots, hi, params, velocities, angular_velocities, 
 def _pair_block(lo, hi, law, work, slots, dirty, model, params, positions, velocities,
                 angular_velocities, radii, masses, materials, fixed, periodic_flag,
                 periodic_length, start, partners, owner, history, pair_force, own,
-                pair_torque_j,
-                max_overlap, dt):
+                pair_torque_j, max_overlap, dt):
     """The pairs listed by grains lo..hi-1, compiled once as a serial function: the
     touching ones gathered CAP at a time into ``work`` and evaluated by the law loop
     (_flush); returns the energies.  Same pair forces as pair_row, to the bit.
