@@ -192,15 +192,15 @@ def test_block_count_keeps_tiny_systems_on_one_block():
 
 
 def test_workspace_rows_start_on_cache_lines():
-    """Every block's workspace and every row of it (CAP doubles) start on a 64-byte
+    """Every block's workspace and every row of it (STRIDE doubles) start on a 64-byte
     boundary, so the law loop's 512-bit accesses never straddle two cache lines."""
-    from graindyn.core.law_loop import CAP
+    from graindyn.core.law_loop import STRIDE
     for blocks in (1, 3, 7):
         work = workspace(blocks, 4)[0]
         assert work.flags.c_contiguous and not work.any()
         for b in range(blocks):
             assert work[b].ctypes.data % 64 == 0
-        assert (CAP * work.itemsize) % 64 == 0
+        assert (STRIDE * work.itemsize) % 64 == 0
 
 
 def test_grains_of_the_walks_are_refilled_before_every_chunk(one_thread):

@@ -26,7 +26,7 @@ import numpy as np
 from .._jit import block, inlined, parallel, prange, scalar
 from ..physics.contact import contact_force, contact_release
 from .law_loop import (CAP, DVX, FIXED_I, FIXED_J, HISTORY, M_I, M_J, OUTPUT, PARAMS, R_I, R_J,
-                       RATIO, SX, SY, SZ, W_I, W_J, call_law, stage_geometry)
+                       RATIO, STRIDE, SX, SY, SZ, W_I, W_J, call_law, stage_geometry)
 from .neighbors import min_image
 from .walls import wall_distance
 
@@ -207,9 +207,9 @@ def _stage_table(work, c, params, a, b, history, k):
     history of contact k."""
     if params.shape[0] > 1:
         for col in range(params.shape[2]):
-            work[(PARAMS + col) * CAP + c] = params[a, b, col]
+            work[(PARAMS + col) * STRIDE + c] = params[a, b, col]
     for h in range(history.shape[1]):
-        work[(HISTORY + h) * CAP + c] = history[k, h]
+        work[(HISTORY + h) * STRIDE + c] = history[k, h]
 
 
 @scalar
@@ -220,9 +220,9 @@ def _stage(work, c, params, a, b, history, k, overlap, lever_i, lever_j, r_eff, 
     _stage_table."""
     stage_geometry(work, c, overlap, lever_i, lever_j, r_eff, m_eff, nx, ny, nz, wx, wy, wz,
                    dwx, dwy, dwz)
-    work[DVX * CAP + c] = dvx
-    work[(DVX + 1) * CAP + c] = dvy
-    work[(DVX + 2) * CAP + c] = dvz
+    work[DVX * STRIDE + c] = dvx
+    work[(DVX + 1) * STRIDE + c] = dvy
+    work[(DVX + 2) * STRIDE + c] = dvz
     _stage_table(work, c, params, a, b, history, k)
 
 
@@ -240,30 +240,30 @@ def _fill(count, work, slots, params, velocities, angular_velocities, radii, mas
     for c in range(count):
         i = first[c]
         j = second[c]
-        work[R_I * CAP + c] = radii[i]
-        work[R_J * CAP + c] = radii[j]
-        work[M_I * CAP + c] = masses[i]
-        work[M_J * CAP + c] = masses[j]
-        work[FIXED_I * CAP + c] = fixed[i]
-        work[FIXED_J * CAP + c] = fixed[j]
-        work[DVX * CAP + c] = velocities[i, 0] - velocities[j, 0]
-        work[(DVX + 1) * CAP + c] = velocities[i, 1] - velocities[j, 1]
-        work[(DVX + 2) * CAP + c] = velocities[i, 2] - velocities[j, 2]
-        work[W_I * CAP + c] = angular_velocities[i, 0]
-        work[(W_I + 1) * CAP + c] = angular_velocities[i, 1]
-        work[(W_I + 2) * CAP + c] = angular_velocities[i, 2]
-        work[W_J * CAP + c] = angular_velocities[j, 0]
-        work[(W_J + 1) * CAP + c] = angular_velocities[j, 1]
-        work[(W_J + 2) * CAP + c] = angular_velocities[j, 2]
+        work[R_I * STRIDE + c] = radii[i]
+        work[R_J * STRIDE + c] = radii[j]
+        work[M_I * STRIDE + c] = masses[i]
+        work[M_J * STRIDE + c] = masses[j]
+        work[FIXED_I * STRIDE + c] = fixed[i]
+        work[FIXED_J * STRIDE + c] = fixed[j]
+        work[DVX * STRIDE + c] = velocities[i, 0] - velocities[j, 0]
+        work[(DVX + 1) * STRIDE + c] = velocities[i, 1] - velocities[j, 1]
+        work[(DVX + 2) * STRIDE + c] = velocities[i, 2] - velocities[j, 2]
+        work[W_I * STRIDE + c] = angular_velocities[i, 0]
+        work[(W_I + 1) * STRIDE + c] = angular_velocities[i, 1]
+        work[(W_I + 2) * STRIDE + c] = angular_velocities[i, 2]
+        work[W_J * STRIDE + c] = angular_velocities[j, 0]
+        work[(W_J + 1) * STRIDE + c] = angular_velocities[j, 1]
+        work[(W_J + 2) * STRIDE + c] = angular_velocities[j, 2]
     if params.shape[0] > 1:
         for c in range(count):
             a = materials[first[c]]
             b = materials[second[c]]
             for col in range(params.shape[2]):
-                work[(PARAMS + col) * CAP + c] = params[a, b, col]
+                work[(PARAMS + col) * STRIDE + c] = params[a, b, col]
     for h in range(history.shape[1]):
         for c in range(count):
-            work[(HISTORY + h) * CAP + c] = history[pairs[c], h]
+            work[(HISTORY + h) * STRIDE + c] = history[pairs[c], h]
 
 
 @scalar
@@ -294,22 +294,22 @@ def _flush(law, work, count, slots, hi, params, velocities, angular_velocities, 
         i = slots[1, s]
         j = slots[2, s]
         inside = j < hi
-        worst = max(worst, work[RATIO * CAP + s])
+        worst = max(worst, work[RATIO * STRIDE + s])
         for d in range(3):
-            f = work[(OUTPUT + d) * CAP + s]
-            torque_j = work[(OUTPUT + 6 + d) * CAP + s]
+            f = work[(OUTPUT + d) * STRIDE + s]
+            torque_j = work[(OUTPUT + 6 + d) * STRIDE + s]
             pair_force[k, d] = f
             own[i, d] += f
-            own[i, 3 + d] += work[(OUTPUT + 3 + d) * CAP + s]
+            own[i, 3 + d] += work[(OUTPUT + 3 + d) * STRIDE + s]
             if inside:
                 own[j, d] -= f
                 own[j, 3 + d] += torque_j
             else:
                 pair_torque_j[k, d] = torque_j
         for h in range(history.shape[1]):
-            history[k, h] = work[(HISTORY + h) * CAP + s]
-        lost_n += work[(OUTPUT + 9) * CAP + s]
-        lost_t += work[(OUTPUT + 10) * CAP + s]
+            history[k, h] = work[(HISTORY + h) * STRIDE + s]
+        lost_n += work[(OUTPUT + 9) * STRIDE + s]
+        lost_t += work[(OUTPUT + 10) * STRIDE + s]
     return lost_n, lost_t, worst
 
 
@@ -350,9 +350,9 @@ def _pair_block(lo, hi, law, work, slots, dirty, model, params, positions, veloc
             dissipated_t += _opened(model, params, a, materials[j], r_i * r_j / rsum,
                                     history, pair_force, pair_torque_j, k)
         dirty[k] = touching
-        work[SX * CAP + count] = dx
-        work[SY * CAP + count] = dy
-        work[SZ * CAP + count] = dz
+        work[SX * STRIDE + count] = dx
+        work[SY * STRIDE + count] = dy
+        work[SZ * STRIDE + count] = dz
         slots[0, count] = k
         slots[1, count] = i
         slots[2, count] = j
@@ -454,16 +454,16 @@ def _flush_walls(law, work, count, slots, wall_history, wall_force, wall_torque,
         q = slots[0, s]
         i = slots[1, s]
         for d in range(3):
-            f = work[(OUTPUT + d) * CAP + s]
-            torque = work[(OUTPUT + 3 + d) * CAP + s]
+            f = work[(OUTPUT + d) * STRIDE + s]
+            torque = work[(OUTPUT + 3 + d) * STRIDE + s]
             wall_force[q, d] = f
             wall_torque[q, d] = torque
             own[i, d] += f
             own[i, 3 + d] += torque
         for h in range(wall_history.shape[1]):
-            wall_history[q, h] = work[(HISTORY + h) * CAP + s]
-        lost_n += work[(OUTPUT + 9) * CAP + s]
-        lost_t += work[(OUTPUT + 10) * CAP + s]
+            wall_history[q, h] = work[(HISTORY + h) * STRIDE + s]
+        lost_n += work[(OUTPUT + 9) * STRIDE + s]
+        lost_t += work[(OUTPUT + 10) * STRIDE + s]
     return lost_n, lost_t
 
 

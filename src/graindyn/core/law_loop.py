@@ -31,6 +31,10 @@ from .._jit import callback, kernel, retarget, scalar
 from ..physics.registry import COL
 
 CAP = 64              # contacts per batch (workspace columns)
+# doubles from one workspace row to the next: rows 512 bytes apart fell into 8 of the
+# 64 sets of the L1 cache, 9 or 10 rows to each 12-way set; 576 bytes apart they use
+# them all (280-grain bed: pair forces 14.0-14.3 -> 13.7-13.9 us, BENCHMARKS.md)
+STRIDE = CAP + 8
 # workspace rows: the inputs of contact_response (a wall contact stages them), the
 # data a pair's geometry is computed from (a pair stages them: its separation
 # r_i - r_j, radii, masses, fixed flags, w_i and w_j), the 11 outputs of
@@ -45,7 +49,7 @@ RATIO = OUTPUT + 11
 PARAMS = RATIO + 1
 HISTORY = PARAMS + len(COL)
 MAX_HISTORY = 32       # most history values a model may keep
-WORKSPACE = (HISTORY + MAX_HISTORY) * CAP
+WORKSPACE = (HISTORY + MAX_HISTORY) * STRIDE
 SIGNATURE = types.void(types.CPointer(types.float64), types.int64, types.float64, types.int64)
 _LOOPS = {}
 
@@ -61,32 +65,32 @@ def stage_geometry(work, c, overlap, lever_i, lever_j, r_eff, m_eff, nx, ny, nz,
     """Column c of a workspace: the inputs of contact_response that follow from the
     contact's geometry (a wall contact's from contacts._stage, a pair's in _law_rows;
     w = R'_i w_i + R'_j w_j, dw = w_i - w_j)."""
-    work[OVERLAP * CAP + c] = overlap
-    work[LEVER_I * CAP + c] = lever_i
-    work[LEVER_J * CAP + c] = lever_j
-    work[R_EFF * CAP + c] = r_eff
-    work[M_EFF * CAP + c] = m_eff
-    work[NX * CAP + c] = nx
-    work[NY * CAP + c] = ny
-    work[NZ * CAP + c] = nz
-    work[WX * CAP + c] = wx
-    work[WY * CAP + c] = wy
-    work[WZ * CAP + c] = wz
-    work[DWX * CAP + c] = dwx
-    work[DWY * CAP + c] = dwy
-    work[DWZ * CAP + c] = dwz
+    work[OVERLAP * STRIDE + c] = overlap
+    work[LEVER_I * STRIDE + c] = lever_i
+    work[LEVER_J * STRIDE + c] = lever_j
+    work[R_EFF * STRIDE + c] = r_eff
+    work[M_EFF * STRIDE + c] = m_eff
+    work[NX * STRIDE + c] = nx
+    work[NY * STRIDE + c] = ny
+    work[NZ * STRIDE + c] = nz
+    work[WX * STRIDE + c] = wx
+    work[WY * STRIDE + c] = wy
+    work[WZ * STRIDE + c] = wz
+    work[DWX * STRIDE + c] = dwx
+    work[DWY * STRIDE + c] = dwy
+    work[DWZ * STRIDE + c] = dwz
 
 
 @scalar
 def workspace_hrow(k, c):
     """Index of history value c of contact k in the workspace."""
-    return (HISTORY + c) * CAP + k
+    return (HISTORY + c) * STRIDE + k
 
 
 @scalar
 def workspace_prow(k, unused, col):
     """Index of pair-table column col of contact k in the workspace."""
-    return (PARAMS + col) * CAP + k
+    return (PARAMS + col) * STRIDE + k
 
 
 def _law_rows(workspace, count, dt, pairs):
@@ -101,40 +105,40 @@ def _law_rows(workspace, count, dt, pairs):
     if pairs:
         for m in range(count):
             overlap, ratio, lever_i, lever_j, r_eff, m_eff, nx, ny, nz = \
-                contact_geometry(w[SX * CAP + m], w[SY * CAP + m],  # noqa: F821
-                                 w[SZ * CAP + m], w[R_I * CAP + m], w[R_J * CAP + m],
-                                 w[M_I * CAP + m], w[M_J * CAP + m], w[FIXED_I * CAP + m],
-                                 w[FIXED_J * CAP + m])
-            w[RATIO * CAP + m] = ratio
+                contact_geometry(w[SX * STRIDE + m], w[SY * STRIDE + m],  # noqa: F821
+                                 w[SZ * STRIDE + m], w[R_I * STRIDE + m], w[R_J * STRIDE + m],
+                                 w[M_I * STRIDE + m], w[M_J * STRIDE + m], w[FIXED_I * STRIDE + m],
+                                 w[FIXED_J * STRIDE + m])
+            w[RATIO * STRIDE + m] = ratio
             # unrolled by hand: the vectorizer takes only innermost loops
-            wix = w[W_I * CAP + m]
-            wiy = w[(W_I + 1) * CAP + m]
-            wiz = w[(W_I + 2) * CAP + m]
-            wjx = w[W_J * CAP + m]
-            wjy = w[(W_J + 1) * CAP + m]
-            wjz = w[(W_J + 2) * CAP + m]
+            wix = w[W_I * STRIDE + m]
+            wiy = w[(W_I + 1) * STRIDE + m]
+            wiz = w[(W_I + 2) * STRIDE + m]
+            wjx = w[W_J * STRIDE + m]
+            wjy = w[(W_J + 1) * STRIDE + m]
+            wjz = w[(W_J + 2) * STRIDE + m]
             stage_geometry(w, m, overlap, lever_i, lever_j, r_eff, m_eff, nx, ny,  # noqa: F821
                            nz, lever_i * wix + lever_j * wjx, lever_i * wiy + lever_j * wjy,
                            lever_i * wiz + lever_j * wjz, wix - wjx, wiy - wjy, wiz - wjz)
     for m in range(count):
         out = contact_response(  # noqa: F821 (set by law_address)
-            MODEL, w, m, 0, w[OVERLAP * CAP + m], w[LEVER_I * CAP + m],  # noqa: F821
-            w[LEVER_J * CAP + m], w[R_EFF * CAP + m], w[M_EFF * CAP + m], w[NX * CAP + m],
-            w[NY * CAP + m], w[NZ * CAP + m], w[DVX * CAP + m], w[DVY * CAP + m],
-            w[DVZ * CAP + m], w[WX * CAP + m], w[WY * CAP + m], w[WZ * CAP + m],
-            w[DWX * CAP + m], w[DWY * CAP + m], w[DWZ * CAP + m], w, m, dt)
+            MODEL, w, m, 0, w[OVERLAP * STRIDE + m], w[LEVER_I * STRIDE + m],  # noqa: F821
+            w[LEVER_J * STRIDE + m], w[R_EFF * STRIDE + m], w[M_EFF * STRIDE + m], w[NX * STRIDE + m],
+            w[NY * STRIDE + m], w[NZ * STRIDE + m], w[DVX * STRIDE + m], w[DVY * STRIDE + m],
+            w[DVZ * STRIDE + m], w[WX * STRIDE + m], w[WY * STRIDE + m], w[WZ * STRIDE + m],
+            w[DWX * STRIDE + m], w[DWY * STRIDE + m], w[DWZ * STRIDE + m], w, m, dt)
         # one store per output: a tuple indexed in a loop would keep the loop scalar
-        w[OUTPUT * CAP + m] = out[0]
-        w[(OUTPUT + 1) * CAP + m] = out[1]
-        w[(OUTPUT + 2) * CAP + m] = out[2]
-        w[(OUTPUT + 3) * CAP + m] = out[3]
-        w[(OUTPUT + 4) * CAP + m] = out[4]
-        w[(OUTPUT + 5) * CAP + m] = out[5]
-        w[(OUTPUT + 6) * CAP + m] = out[6]
-        w[(OUTPUT + 7) * CAP + m] = out[7]
-        w[(OUTPUT + 8) * CAP + m] = out[8]
-        w[(OUTPUT + 9) * CAP + m] = out[9]
-        w[(OUTPUT + 10) * CAP + m] = out[10]
+        w[OUTPUT * STRIDE + m] = out[0]
+        w[(OUTPUT + 1) * STRIDE + m] = out[1]
+        w[(OUTPUT + 2) * STRIDE + m] = out[2]
+        w[(OUTPUT + 3) * STRIDE + m] = out[3]
+        w[(OUTPUT + 4) * STRIDE + m] = out[4]
+        w[(OUTPUT + 5) * STRIDE + m] = out[5]
+        w[(OUTPUT + 6) * STRIDE + m] = out[6]
+        w[(OUTPUT + 7) * STRIDE + m] = out[7]
+        w[(OUTPUT + 8) * STRIDE + m] = out[8]
+        w[(OUTPUT + 9) * STRIDE + m] = out[9]
+        w[(OUTPUT + 10) * STRIDE + m] = out[10]
 
 
 class _Specialize(ast.NodeTransformer):
@@ -252,17 +256,17 @@ def call_law(typingctx, address, workspace, count, dt, pairs):
 
 def workspace(blocks, history_size):
     """Scratch of the law loop for ``blocks`` blocks of grains: workspaces (blocks,
-    rows * CAP), the pair, first and second grain of each column (blocks, 3, CAP), and
+    rows * STRIDE), the pair, first and second grain of each column (blocks, 3, CAP), and
     the pair loop's dirty flags (one byte per pair slot, sized by ``prepare``)."""
     if history_size > MAX_HISTORY:
         raise ValueError(f"a model keeps at most {MAX_HISTORY} history values")
-    return (_aligned_zeros((blocks, workspace_rows(history_size) * CAP)),
+    return (_aligned_zeros((blocks, workspace_rows(history_size) * STRIDE)),
             np.zeros((blocks, 3, CAP), np.int64), np.ones(0, np.uint8))
 
 
 def _aligned_zeros(shape):
     """Zeros whose first element sits on a 64-byte boundary, as every row of a workspace
-    then does (CAP doubles): the law loop's AVX-512 loads and stores no longer straddle
+    then does (STRIDE doubles): the law loop's AVX-512 loads and stores no longer straddle
     two cache lines (numpy gave 48 mod 64: 6.1 against 5.9 ns per pair contact)."""
     size = int(np.prod(shape))
     buffer = np.zeros(size + 8)
@@ -278,7 +282,7 @@ def prepare(law, params, pair_capacity):
     may have been rebuilt or the arrays replaced since the last chunk)."""
     address, work, slots, dirty = law
     if params.shape[0] == 1:
-        rows = work.reshape(work.shape[0], -1, CAP)
+        rows = work.reshape(work.shape[0], -1, STRIDE)
         rows[:, PARAMS:PARAMS + params.shape[2], :] = params[0, 0, :, None]
     if dirty.size != pair_capacity:
         dirty = np.ones(pair_capacity, np.uint8)

@@ -242,7 +242,8 @@ def wall_distance(kind, geometry, offset, w, x, y, z):
     rho = math.sqrt(rx * rx + ry * ry + rz * rz)
     if rho == 0.0:
         return geometry[w, 6], 1.0, 0.0, 0.0
-    return geometry[w, 6] - rho, -rx / rho, -ry / rho, -rz / rho
+    inverse = 1.0 / rho      # one division, not three (the CPU's wall walk: scalar)
+    return geometry[w, 6] - rho, -rx * inverse, -ry * inverse, -rz * inverse
 
 
 @kernel

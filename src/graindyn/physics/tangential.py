@@ -72,9 +72,10 @@ def tangential_spring_force(kt, eta_t, mu, fn, cap, nx, ny, nz, vtx, vty, vtz,
         fy *= s
         fz *= s
         if kt > 0.0:
-            zx = -(fx + viscous * vtx) / kt
-            zy = -(fy + viscous * vty) / kt
-            zz = -(fz + viscous * vtz) / kt
+            compliance = -1.0 / kt       # one division, not three
+            zx = (fx + viscous * vtx) * compliance
+            zy = (fy + viscous * vty) * compliance
+            zz = (fz + viscous * vtz) * compliance
         else:
             zx = 0.0
             zy = 0.0
