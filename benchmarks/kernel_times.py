@@ -33,21 +33,21 @@ def main(argv):
     args = (sim.model_ids, sim.params, sim._law, sim.clock, sim._grains(), sim._walls(), sim._periodic(), sim.pairs, sim.counters,
             sim.integrator_history, sim.block_scratch)
 
-    @numba.njit
+    @numba.njit(_nrt=False)   # as the time loop (_jit.driver): no reference counting
     def t_due(reps, model, params, law, clock, g, w, p, pairs, counters, history, scratch):
         s = 0
         for _ in range(reps):
             s += loop.rebuild_due(clock, w[5], w[9], w[6])
         return s
 
-    @numba.njit
+    @numba.njit(_nrt=False)
     def t_drift(reps, model, params, law, clock, g, w, p, pairs, counters, history, scratch):
         for _ in range(reps):
             before_force(counters[loop.INTEGRATOR], np.int64(0), clock[loop.DT],
                          counters[loop.HISTORY_STEPS] > 0, g[0], g[1], g[2], g[3], g[6],
                          g[7], g[12], history)
 
-    @numba.njit
+    @numba.njit(_nrt=False)
     def t_part(reps, part, model, params, law, clock, g, w, p, pairs, counters, history,
                scratch):
         s = 0.0
@@ -60,7 +60,7 @@ def main(argv):
                                 scratch.size, part)[0]
         return s
 
-    @numba.njit
+    @numba.njit(_nrt=False)
     def t_forces(reps, model, params, law, clock, g, w, p, pairs, counters, history, scratch):
         s = 0.0
         for _ in range(reps):
@@ -69,7 +69,7 @@ def main(argv):
                                       scratch.size)[2]
         return s
 
-    @numba.njit
+    @numba.njit(_nrt=False)
     def t_correct(reps, drift_next, model, params, law, clock, g, w, p, pairs, counters,
                   history, scratch):
         s = 0.0

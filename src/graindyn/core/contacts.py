@@ -377,6 +377,16 @@ def _pair_block(lo, hi, law, work, slots, dirty, model, params, positions, veloc
 
 
 @scalar
+def largest(values):
+    """The largest of ``values`` (1-D), 0 for none or all negative (ndarray.max
+    allocates a temporary: not in code compiled without reference counting)."""
+    top = 0.0
+    for i in range(values.size):
+        top = max(top, values[i])
+    return top
+
+
+@scalar
 def keep_worst(lo, hi, worst, max_overlap):
     """Raise max_overlap[lo] to ``worst``, the largest overlap / smaller radius of the
     contacts of grains lo..hi-1: the CPU keeps it by block (at its first grain), as the
@@ -563,7 +573,8 @@ def contact_forces(model, params, law, positions, velocities, angular_velocities
     owner[k], wall_owner[q] : the grain of pair k that lists it, of wall candidate q
     (neighbors.list_owners).
     law : (address of the law loop (law_loop.law_address), workspaces (nblock, ...),
-    slots (nblock, 3, CAP), dirty (one byte per pair slot, law_loop.workspace)).
+    slots (nblock, 3, CAP), dirty (one byte per pair slot), energies (nblock, 2):
+    law_loop.workspace).
     pair_force[k] [N] is the force on the first grain i of pair k and pair_torque_j[k]
     [N m] the torque on its second grain j when j is in another block; own[i] (6) is
     the sum of the forces and torques on i of the pairs it lists, of the pairs of its
@@ -576,7 +587,7 @@ def contact_forces(model, params, law, positions, velocities, angular_velocities
     ``nblock`` fixed blocks of grains (block_count) in block order.
     """
     n = positions.shape[0]
-    address, work, slots, dirty = law
+    address, work, slots, dirty, sums = law
     if nblock == 1:    # no parallel region to enter (a few us per call); a plain int64 0
         return _contact_block(
             np.int64(0), n, parts, address, work[0], slots[0], dirty, model, params,
@@ -585,7 +596,6 @@ def contact_forces(model, params, law, positions, velocities, angular_velocities
             pair_torque_j, wall_kind, wall_geometry, wall_offset, wall_velocity,
             wall_material, wall_start, wall_ids, wall_owner, wall_history, wall_force, wall_torque,
             own, max_overlap, dt)
-    sums = np.zeros((nblock, 2))
     for b in prange(nblock):
         sums[b, 0], sums[b, 1] = _contact_block(
             b * n // nblock, (b + 1) * n // nblock, parts, address, work[b], slots[b], dirty,
@@ -594,7 +604,7 @@ def contact_forces(model, params, law, positions, velocities, angular_velocities
             history, pair_force, pair_torque_j, wall_kind, wall_geometry, wall_offset,
             wall_velocity, wall_material, wall_start, wall_ids, wall_owner, wall_history,
             wall_force, wall_torque, own, max_overlap, dt)
-    return _block_total(sums)
+    return _block_total(sums, nblock)
 
 
 def block_count(n, threads):
@@ -617,11 +627,11 @@ def block_count(n, threads):
 
 
 @scalar
-def _block_total(sums):
-    """Column sums of the per-block energies, in block order."""
+def _block_total(sums, nblock):
+    """Column sums of the energies of the first ``nblock`` blocks, in block order."""
     total_n = 0.0
     total_t = 0.0
-    for b in range(sums.shape[0]):
+    for b in range(nblock):
         total_n += sums[b, 0]
         total_t += sums[b, 1]
     return total_n, total_t

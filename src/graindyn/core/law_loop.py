@@ -256,12 +256,13 @@ def call_law(typingctx, address, workspace, count, dt, pairs):
 
 def workspace(blocks, history_size):
     """Scratch of the law loop for ``blocks`` blocks of grains: workspaces (blocks,
-    rows * STRIDE), the pair, first and second grain of each column (blocks, 3, CAP), and
-    the pair loop's dirty flags (one byte per pair slot, sized by ``prepare``)."""
+    rows * STRIDE), the pair, first and second grain of each column (blocks, 3, CAP),
+    the pair loop's dirty flags (one byte per pair slot, sized by ``prepare``) and the
+    energies each block dissipated (blocks, 2)."""
     if history_size > MAX_HISTORY:
         raise ValueError(f"a model keeps at most {MAX_HISTORY} history values")
     return (_aligned_zeros((blocks, workspace_rows(history_size) * STRIDE)),
-            np.zeros((blocks, 3, CAP), np.int64), np.ones(0, np.uint8))
+            np.zeros((blocks, 3, CAP), np.int64), np.ones(0, np.uint8), np.zeros((blocks, 2)))
 
 
 def _aligned_zeros(shape):
@@ -275,16 +276,16 @@ def _aligned_zeros(shape):
 
 
 def prepare(law, params, pair_capacity):
-    """The law tuple (address, work, slots, dirty) made ready for a chunk: with a single
+    """The law tuple (address, work, slots, dirty, energies) made ready for a chunk: with a single
     material, its pair-table row in every column of the workspaces (the pair loop then
     does not copy it for every contact; the table may have changed between runs), and
     every pair slot marked dirty (its force and history may be non-zero: the lists
     may have been rebuilt or the arrays replaced since the last chunk)."""
-    address, work, slots, dirty = law
+    address, work, slots, dirty, sums = law
     if params.shape[0] == 1:
         rows = work.reshape(work.shape[0], -1, STRIDE)
         rows[:, PARAMS:PARAMS + params.shape[2], :] = params[0, 0, :, None]
     if dirty.size != pair_capacity:
         dirty = np.ones(pair_capacity, np.uint8)
     dirty[:] = 1
-    return address, work, slots, dirty
+    return address, work, slots, dirty, sums

@@ -1,10 +1,10 @@
 """The compiled time loop: many steps per call, Python only between chunks.
 
 One step (the order is fixed here and nowhere else):
-  1. for each integrator stage: drift/predict; at the first stage, rebuild the
-     neighbour lists if some grain (or wall) may have moved more than half the skin
-     (on capacity overflow return GROW with the lists unchanged, so the caller grows
-     the arrays and calls again) and move prescribed walls; contact forces (pairs,
+  1. for each integrator stage: drift/predict; at the first stage, when some grain
+     (or wall) may have moved more than half the skin, return RELIST: the caller
+     rebuilds the neighbour lists (``relist``) and calls again, which goes on from
+     there; move prescribed walls; contact forces (pairs,
      then walls), then one pass over grains that gathers their contact forces,
      corrects the velocities and bounds the displacement for the next step's check
      (integrators/passes.py; the integrator's own history is ``integrator_history``).
@@ -15,19 +15,24 @@ One step (the order is fixed here and nowhere else):
   3. every ``check_interval`` steps: NaN, excessive overlap, and the stop condition.
 The first step of a run first builds the lists and evaluates the forces at the start.
 Dissipated energies and the work of moving walls are accumulated in ``clock``.
+
+run_chunk and what it calls every step are compiled without reference counting
+(_jit.driver): with it, each call into a pass counted every array of the bundles in
+and out, about 2.3 us per step whatever the number of grains (BENCHMARKS.md).  They
+allocate nothing; the rebuild, which does, runs from Python between two calls.
 """
 import math
 
 import numpy as np
 
-from .._jit import kernel
-from .contacts import PAIRS, WALLS, contact_forces
+from .._jit import driver, kernel, scalar
+from .contacts import PAIRS, WALLS, contact_forces, largest
 from .integrators import STAGES, after_force, before_force
 from .neighbors import rebuild
 from .walls import walls_advance
 
-# return codes of run_chunk
-DONE, CONDITION, GROW, NAN, OVERLAP = 0, 1, 2, 3, 4
+# return codes of run_chunk (and relist: DONE, GROW, NAN)
+DONE, CONDITION, GROW, NAN, OVERLAP, RELIST = 0, 1, 2, 3, 4, 5
 # clock (float64) slots
 TIME, DT, SKIN, GX, GY, GZ, COND_VALUE, OVERLAP_LIMIT, DISS_N, DISS_T, WALL_WORK, MOVE = \
     range(12)
@@ -35,8 +40,9 @@ TIME, DT, SKIN, GX, GY, GZ, COND_VALUE, OVERLAP_LIMIT, DISS_N, DISS_T, WALL_WORK
 STEP, DIM, INTEGRATOR, REBUILDS, FORCE_REBUILD, CHECK_INTERVAL, COND_KIND, PRIMED, \
     NEED_PAIRS, NEED_WALLS, HISTORY_STEPS = range(11)
 NCOUNTERS = 11
-# counters[FORCE_REBUILD]: 1 forced, REBUILD_DRIFTED forced after the step's first drift
-REBUILD_DRIFTED = 2
+# counters[FORCE_REBUILD]: 1 forced; RELISTED: the lists were just rebuilt for the step
+# run_chunk returned RELIST in (after its first drift, or before the priming evaluation)
+RELISTED = 3
 # compiled stop conditions
 NO_CONDITION, MAX_SPEED_BELOW, ENERGY_RATIO_BELOW = 0, 1, 2
 
@@ -51,7 +57,7 @@ def new_clock(dt, skin, gravity):
     return clock
 
 
-@kernel
+@driver
 def evaluate_forces(model, params, law, grains, pairs, walls, periodic, gravity, dt, nblock):
     """All contact forces and the total force on each wall; returns the (normal,
     tangential) energy dissipated [J] and the power of the walls on the grains [W].
@@ -110,7 +116,7 @@ def _energies(velocities, angular_velocities, positions, masses, inertias, fixed
     return kinetic, potential
 
 
-@kernel
+@driver
 def _all_finite(positions):
     """True when every coordinate is finite (checked before a neighbour rebuild, which
     cannot grid NaN or infinite positions)."""
@@ -121,7 +127,7 @@ def _all_finite(positions):
     return True
 
 
-@kernel
+@driver
 def _checks(grains, counters, clock):
     """NaN, overlap and stop-condition checks; returns a status code."""
     (positions, velocities, angular_velocities, orientations, forces, torques, accelerations,
@@ -137,7 +143,7 @@ def _checks(grains, counters, clock):
             v2 += velocities[i, d] ** 2
         if not fixed[i]:
             vmax = max(vmax, v2)
-    worst = max_overlap.max() if max_overlap.size > 0 else 0.0
+    worst = largest(max_overlap)
     max_overlap[:] = 0.0
     if worst > clock[OVERLAP_LIMIT]:
         return OVERLAP
@@ -152,7 +158,7 @@ def _checks(grains, counters, clock):
     return DONE
 
 
-@kernel
+@driver
 def rebuild_due(clock, offset, reference_offset, velocity):
     """The half-skin rule: True when some grain (clock[MOVE], the bound of the last
     correction) plus the walls (displacement since the last build + 2 |v| dt) may have
@@ -170,7 +176,7 @@ def rebuild_due(clock, offset, reference_offset, velocity):
     return grain_move + max(grain_move, wall_move) > clock[SKIN]
 
 
-@kernel
+@driver
 def _after(integrator, stage, dt, counters, gravity, grains, pairs, periodic,
            integrator_history, block_scratch, drift_next):
     """integrators.after_force with the arrays it needs taken out of the bundles."""
@@ -185,12 +191,10 @@ def _after(integrator, stage, dt, counters, gravity, grains, pairs, periodic,
 
 
 @kernel
-def _relist(grains, pairs, walls, periodic, clock, counters, law):
-    """Rebuild the neighbour lists when forced or due (rebuild_due); returns DONE, NAN
-    (non-finite positions) or GROW (capacity short: counters say how much is needed,
-    nothing has changed)."""
-    if counters[FORCE_REBUILD] == 0 and not rebuild_due(clock, walls[5], walls[9], walls[6]):
-        return DONE
+def relist(grains, pairs, walls, periodic, clock, counters, law):
+    """Rebuild the neighbour lists (run_chunk returned RELIST); returns DONE (and
+    counters[FORCE_REBUILD] = RELISTED), NAN (non-finite positions) or GROW (capacity
+    short: counters say how much is needed, nothing has changed)."""
     positions = grains[0]
     if not _all_finite(positions):
         return NAN
@@ -208,18 +212,29 @@ def _relist(grains, pairs, walls, periodic, clock, counters, law):
     if needed > partners.size or wall_needed > wall_ids.size:
         counters[NEED_PAIRS] = needed
         counters[NEED_WALLS] = wall_needed
-        counters[FORCE_REBUILD] = 1
         return GROW
-    counters[FORCE_REBUILD] = 0
+    counters[FORCE_REBUILD] = RELISTED
     counters[REBUILDS] += 1
     law[3][:] = 1          # new pair slots: every one may hold force or history
     return DONE
 
 
-@kernel
+@scalar
+def _lists_ready(clock, counters, walls):
+    """True when the step may use the lists as they are: just rebuilt (RELISTED, then
+    cleared), or neither forced nor due (rebuild_due); else run_chunk returns RELIST."""
+    if counters[FORCE_REBUILD] == RELISTED:
+        counters[FORCE_REBUILD] = 0
+        return True
+    return counters[FORCE_REBUILD] == 0 and not rebuild_due(clock, walls[5], walls[9],
+                                                            walls[6])
+
+
+@driver
 def run_chunk(model, params, law, grains, pairs, walls, periodic, clock, counters,
               integrator_history, block_scratch, nsteps):
-    """Advance up to ``nsteps`` steps; returns (status, steps done).
+    """Advance up to ``nsteps`` steps; returns (status, steps done).  On RELIST the
+    step ``done`` is under way: call relist, then run_chunk for the steps left.
     integrator_history : (slots, N, 3) the integrator's own per-grain history
     (integrators/ids.py)."""
     (positions, velocities, angular_velocities, orientations, forces, torques, accelerations,
@@ -231,13 +246,12 @@ def run_chunk(model, params, law, grains, pairs, walls, periodic, clock, counter
     dt = clock[DT]
     gravity = clock[GX:GZ + 1]
     integrator = counters[INTEGRATOR]
-    # a GROW return after the step's drift: the grains are drifted already
-    drifted = counters[FORCE_REBUILD] == REBUILD_DRIFTED
+    # lists rebuilt after the step's drift (a RELIST return): the grains are drifted
+    drifted = counters[FORCE_REBUILD] == RELISTED and counters[PRIMED] != 0
     for s in range(nsteps):
         if counters[PRIMED] == 0:
-            status = _relist(grains, pairs, walls, periodic, clock, counters, law)
-            if status != DONE:
-                return status, s
+            if not _lists_ready(clock, counters, walls):
+                return RELIST, s
             evaluate_forces(model, params, law, grains, pairs, walls, periodic, gravity, 0.0,
                             block_scratch.size)
             # stage and drift_next as a plain int64 and bool: literals would compile the
@@ -246,7 +260,7 @@ def run_chunk(model, params, law, grains, pairs, walls, periodic, clock, counter
                                  pairs, periodic, integrator_history, block_scratch, s < 0)
             counters[PRIMED] = 1
             # grains that start too deep in each other or in a wall: stop before moving
-            if max_overlap.size > 0 and max_overlap.max() > clock[OVERLAP_LIMIT]:
+            if largest(max_overlap) > clock[OVERLAP_LIMIT]:
                 return OVERLAP, s
         last = STAGES[integrator] - 1
         for stage in range(last + 1):
@@ -256,11 +270,8 @@ def run_chunk(model, params, law, grains, pairs, walls, periodic, clock, counter
                              angular_accelerations, fixed, integrator_history)
             drifted = False
             if stage == 0:
-                status = _relist(grains, pairs, walls, periodic, clock, counters, law)
-                if status == GROW:
-                    counters[FORCE_REBUILD] = REBUILD_DRIFTED
-                if status != DONE:
-                    return status, s
+                if not _lists_ready(clock, counters, walls):
+                    return RELIST, s
                 walls_advance(motion_kind, motion, base, offset, velocity, force, clock[TIME],
                               dt)
             # each force evaluation stands for its share of the step (the optimized

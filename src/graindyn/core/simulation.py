@@ -282,6 +282,7 @@ class Simulation:
         if self.block_scratch.size != blocks or self._law is None:  # first, or new threads
             self.block_scratch = np.zeros(blocks)
             self._law = (law_address(self.model_ids), *law_workspace(blocks, self.history_size))
+        total = 0
         while True:
             self._law = prepare(self._law, self.params, self.pairs[1].size)
             # the grains of the pair and wall walks (kept by each rebuild), whatever set the lists
@@ -291,19 +292,30 @@ class Simulation:
                                           self.pairs, self._walls(), self._periodic(),
                                           self.clock, self.counters, self.integrator_history,
                                           self.block_scratch, nsteps)
+            total += done
             self.state.time = self.time
             self.state.step = self.step
+            if status != loop.RELIST:
+                return status, total
+            status = self._relist()
+            if status != loop.DONE:
+                return status, total
+            nsteps -= done
+
+    def _relist(self):
+        """Rebuild the neighbour lists (loop.relist), growing them as needed; returns
+        DONE or NAN."""
+        while True:
+            status = loop.relist(self._grains(), self.pairs, self._walls(), self._periodic(),
+                                 self.clock, self.counters, self._law)
             if status != loop.GROW:
-                return status, done
+                return status
             need_p = int(self.counters[loop.NEED_PAIRS])
             need_w = int(self.counters[loop.NEED_WALLS])
             if need_p > self.pairs[1].size:
                 self._allocate_pairs(int(1.3 * need_p) + 64)
             if need_w > self.wall_contacts[1].size:
                 self._allocate_walls(int(1.3 * need_w) + 16)
-            nsteps -= done
-            if nsteps == 0:
-                return loop.DONE, done
 
     def run(self, steps=None, time=None, until=None, every=(), max_chunk=20000,
             between=None):

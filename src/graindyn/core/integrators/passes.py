@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from ..._jit import block, block_body, parallel, prange, scalar
-from ..contacts import gather_pairs
+from ..contacts import gather_pairs, largest
 from ..neighbors import min_image
 from .beeman import beeman_correct, beeman_drift
 from .gear import gear_correct, gear_drift
@@ -264,4 +264,4 @@ def after_force(integrator, stage, dt, started, dim, gravity, pairs, forces, tor
             forces, torques, masses, inertias, positions, reference_positions, velocities,
             angular_velocities, orientations, accelerations, angular_accelerations, fixed,
             periodic_flag, periodic_length, history, drift_next)
-    return block_scratch.max()
+    return largest(block_scratch[:nblock])
