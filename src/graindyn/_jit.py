@@ -9,9 +9,9 @@ compile time by three; LLVM inlining keeps all but about 3 % of the speed);
 ``kernel`` for serial array loops; ``parallel`` for loops over grains or contacts with
 ``prange``; ``driver`` for the time loop and what it calls every step, compiled without
 reference counting (each call counted every array of the bundles it was passed in and
-out: 2.3 us per step, core/loop.py); a driver and all it calls must allocate nothing
-(numba compiles them all without reference counting); ``block`` for the serial body of one block of a parallel loop (no reference
-counting), ``block_body`` for such a body LLVM-inlined into a block that calls it with
+out: 2.3 us per step, core/loop.py): a driver and all it calls must allocate nothing,
+as numba compiles them all without it; ``block`` for the serial body of one block of
+a parallel loop (no reference counting), ``block_body`` for such a body LLVM-inlined into a block that calls it with
 constant arguments, so that the branches they decide fold away (or into several
 callers, compiled once); every call passes typed arguments (``np.int64(0)``,
 ``np.bool_(True)``), as a literal would compile the callee once more; ``callback`` for C

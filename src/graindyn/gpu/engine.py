@@ -335,7 +335,8 @@ class DeviceEnsemble:
 
     def chunk(self, nsteps):
         """Up to nsteps[k] steps of each system k on the device: (status (K,), steps done
-        (K,)), as run_chunk for each (GROW never comes back: lists are grown here)."""
+        (K,)), as run_chunk for each (RELIST never comes back: lists are rebuilt and grown
+        here)."""
         self._upload()
         try:
             return self._steps(np.asarray(nsteps, np.int64))
