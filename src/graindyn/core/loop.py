@@ -2,10 +2,10 @@
 
 One step (the order is fixed here and nowhere else):
   1. for each integrator stage: drift/predict; at the first stage, when some grain
-     (or wall) may have moved more than half the skin, return RELIST: the caller
-     rebuilds the neighbour lists (``relist``) and calls again, which goes on from
-     there; move prescribed walls; contact forces (pairs,
-     then walls), then one pass over grains that gathers their contact forces,
+     (or wall) may have moved more than half the skin, return RELIST (the caller
+     rebuilds the neighbour lists with ``relist`` and calls again, which goes on from
+     there), then move prescribed walls; contact forces (pairs, then walls), then one
+     pass over grains that gathers their contact forces,
      corrects the velocities and bounds the displacement for the next step's check
      (integrators/passes.py; the integrator's own history is ``integrator_history``).
      The last pass of a step also does the next step's first drift, unless the step
