@@ -522,9 +522,9 @@ def test_2d_settling_stays_in_plane():
 
 
 def test_growing_the_pair_lists_mid_step_changes_nothing():
-    """A collapsing bed outgrows short pair lists: the loop returns GROW after
-    the step's first drift, the arrays grow and the step resumes without drifting
-    again.  The rebuild is due at the same step as in a run with room to spare, so the
+    """A collapsing bed outgrows short pair lists: the loop returns RELIST after
+    the step's first drift, the rebuild returns GROW, the arrays grow, and the step
+    resumes without drifting again.  The rebuild is due at the same step as in a run with room to spare, so the
     two runs agree to the bit."""
     def column(capacity):
         rng = np.random.default_rng(5)

@@ -401,7 +401,7 @@ def wall_gap(i, q, model, params, positions, radii, materials, wall_kind, wall_g
              wall_offset, wall_material, wall_ids, wall_history, wall_force, wall_torque):
     """Wall contact q of grain i: (overlap [m], unit normal (3) from the wall to the
     grain, energy [J] lost with the history of a contact found open: overlap <= 0, whose
-    rows are then zeroed, _release)."""
+    rows are then zeroed, _release; the wall w and the lever R_i - overlap [m])."""
     w = wall_ids[q]
     dist, nx, ny, nz = wall_distance(wall_kind, wall_geometry, wall_offset, w,
                                      positions[i, 0], positions[i, 1], positions[i, 2])
@@ -410,7 +410,7 @@ def wall_gap(i, q, model, params, positions, radii, materials, wall_kind, wall_g
     if overlap <= 0.0:
         lost = _release(model, params, materials[i], wall_material[w], radii[i], wall_history,
                         wall_force, wall_torque, q)
-    return overlap, nx, ny, nz, lost
+    return overlap, nx, ny, nz, lost, w, radii[i] - overlap
 
 
 @scalar
@@ -425,16 +425,13 @@ def wall_row(i, model, params, positions, velocities, angular_velocities, radii,
     worst = max_overlap[i]
     r_i = radii[i]
     for q in range(wall_start[i], wall_start[i + 1]):
-        overlap, nx, ny, nz, lost = wall_gap(i, q, model, params, positions, radii, materials,
-                                             wall_kind, wall_geometry, wall_offset,
-                                             wall_material, wall_ids, wall_history, wall_force,
-                                             wall_torque)
+        overlap, nx, ny, nz, lost, w, lever = wall_gap(
+            i, q, model, params, positions, radii, materials, wall_kind, wall_geometry,
+            wall_offset, wall_material, wall_ids, wall_history, wall_force, wall_torque)
         if overlap <= 0.0:
             dissipated_t += lost
             continue
-        w = wall_ids[q]
         worst = max(worst, overlap / r_i)
-        lever = r_i - overlap
         out = contact_response(
             model, params, materials[i], wall_material[w], overlap, lever, 0.0, r_i,
             masses[i], nx, ny, nz,
@@ -493,15 +490,13 @@ def _wall_block(lo, hi, law, work, slots, model, params, positions, velocities,
     for q in range(wall_start[lo], wall_start[hi]):
         i = wall_owner[q]
         r_i = radii[i]
-        overlap, nx, ny, nz, lost = wall_gap(
+        overlap, nx, ny, nz, lost, w, lever = wall_gap(
             i, q, model, params, positions, radii, materials, wall_kind, wall_geometry,
             wall_offset, wall_material, wall_ids, wall_history, wall_force, wall_torque)
         if overlap <= 0.0:
             dissipated_t += lost
             continue
-        w = wall_ids[q]
         worst = max(worst, overlap / r_i)
-        lever = r_i - overlap
         _stage(work, count, params, materials[i], wall_material[w], wall_history, q,
                overlap, lever, 0.0, r_i, masses[i], nx, ny, nz,
                velocities[i, 0] - wall_velocity[w, 0],
