@@ -17,7 +17,8 @@ Prints particle-steps per second (summed over the members), device bytes per gra
 and the bytes of the arrays handed to the per-grain kernels per particle-step (each
 array counted once per launch: an estimate of the memory traffic) with the fraction of
 BANDWIDTH bytes/s (environment variable, default 3.0e12, the H100 of the issue) it
-implies.  Under NUMBA_ENABLE_CUDASIM=1 it runs (slowly) for a smoke test only.
+implies, and how often the host read the run table back (engine.DeviceEnsemble._batch)
+against the rebuilds.  Under NUMBA_ENABLE_CUDASIM=1 it runs (slowly) for a smoke test only.
 """
 import os
 import sys
@@ -63,9 +64,11 @@ def main(argv):
     engine = group._device
     engine.count_bytes = True
     n = sum(s.state.n for s in sims)
+    reads, rebuilds = engine.reads, sum(s.rebuilds for s in sims)
     t0 = time.perf_counter()
     group.run(steps=steps)
     wall = time.perf_counter() - t0
+    reads, rebuilds = engine.reads - reads, sum(s.rebuilds for s in sims) - rebuilds
     per_step = engine.launched_bytes / (steps * n)
     rate = n * steps / wall
     bandwidth = float(os.environ.get("BANDWIDTH", 3.0e12))
@@ -74,6 +77,7 @@ def main(argv):
     print(f"device_bytes_per_grain {engine.memory_bytes() / n:.0f}")
     print(f"kernel_bytes_per_particle_step {per_step:.0f} bandwidth_fraction "
           f"{rate * per_step / bandwidth:.3f}")
+    print(f"host_reads {reads} rebuilds {rebuilds} (summed over members) in {steps} steps")
 
 
 if __name__ == "__main__":

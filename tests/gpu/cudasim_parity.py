@@ -72,6 +72,20 @@ def checks():
         except OverlapError as err:
             overlap = str(err)[:40]
         out[backend] = [first, sim.step, energy, overlap]
+    # two grains meeting head-on with no wall and no gravity, 400 steps in chunks of 100
+    for backend in ("cpu", "gpu"):
+        state = gd.State.create(np.array([[0.0, 0.0, 0.0], [2.2e-3, 0.1e-3, 0.0]]),
+                                np.full(2, 1e-3), 2650.0,
+                                velocities=np.array([[0.5, 0.0, 0.0], [-0.5, 0.0, 0.0]]))
+        grain = gd.Material(youngs_modulus=1e7, restitution=0.8, friction_sliding=0.5)
+        free = gd.Simulation(state, [grain], gd.ContactModel(*model), gravity=(0, 0, 0),
+                             dt=2e-6, skin=2e-5, backend=backend)
+        for _ in range(4):
+            free.run(steps=100)
+        out[f"free-{backend}"] = [sum(free.dissipated.values()), free.rebuilds,
+                                  float(free.state.velocities[0, 0])]
+        if backend == "gpu":
+            out["reads"] = free._device.reads
     print(json.dumps(out))
 
 

@@ -127,9 +127,27 @@ def _all_finite(positions):
     return True
 
 
+@scalar
+def verdict(finite, worst, speed2, kinetic, potential, kind, clock):
+    """The status of a checked step from its measures: NAN unless every position,
+    velocity and force is finite, OVERLAP when the largest overlap ``worst`` [m] passes
+    the limit, CONDITION when the stop condition ``kind`` holds (largest speed
+    sqrt(speed2) [m/s], or kinetic over potential energy [J]), else DONE.  Shared with
+    the GPU's per-system check."""
+    if not finite:
+        return NAN
+    if worst > clock[OVERLAP_LIMIT]:
+        return OVERLAP
+    if kind == MAX_SPEED_BELOW and math.sqrt(speed2) < clock[COND_VALUE]:
+        return CONDITION
+    if kind == ENERGY_RATIO_BELOW and kinetic <= clock[COND_VALUE] * potential:
+        return CONDITION
+    return DONE
+
+
 @driver
 def _checks(grains, counters, clock):
-    """NaN, overlap and stop-condition checks; returns a status code."""
+    """NaN, overlap and stop-condition checks (``verdict``); returns a status code."""
     (positions, velocities, angular_velocities, orientations, forces, torques, accelerations,
      angular_accelerations, radii, masses, inertias, materials, fixed, reference_positions,
      max_overlap) = grains
@@ -145,17 +163,12 @@ def _checks(grains, counters, clock):
             vmax = max(vmax, v2)
     worst = largest(max_overlap)
     max_overlap[:] = 0.0
-    if worst > clock[OVERLAP_LIMIT]:
-        return OVERLAP
     kind = counters[COND_KIND]
-    if kind == MAX_SPEED_BELOW and math.sqrt(vmax) < clock[COND_VALUE]:
-        return CONDITION
-    if kind == ENERGY_RATIO_BELOW:
+    kinetic = potential = 0.0
+    if kind == ENERGY_RATIO_BELOW and worst <= clock[OVERLAP_LIMIT]:
         kinetic, potential = _energies(velocities, angular_velocities, positions, masses,
                                        inertias, fixed, clock[GX:GZ + 1])
-        if kinetic <= clock[COND_VALUE] * potential:
-            return CONDITION
-    return DONE
+    return verdict(True, worst, vmax, kinetic, potential, kind, clock)
 
 
 @driver

@@ -12,13 +12,17 @@ the start of a chunk and come back at its end, so everything between chunks (tri
 outputs, protocols, checkpoints) sees the same host arrays as on the CPU, and a
 checkpoint written on one backend resumes on the other.  Within a chunk:
 * forces, contact histories, walls and the integrator advance on the device;
-* the neighbour lists are built on the device (gpu/neighbours.py) when the half-skin
-  rule, evaluated on the device for each system, asks for it; the host reads those
-  flags back each step, and the list sizes at each rebuild;
 * wall totals, energies, the displacement bound and the checks of run_chunk (non-finite
   values, overlap, stop condition, every check_interval steps) are device reductions
-  (gpu/reductions.py), per system; a system that stops (its condition, a NaN, an
-  overlap, or the end of its steps) is masked out while the others go on.
+  (gpu/reductions.py), per system, and one thread per system ends each step on the
+  device (finish_kernel): it counts the step, applies the checks, and masks the system
+  out when it stops (its condition, a NaN, an overlap, the end of its steps) or when
+  the half-skin rule says its lists must be rebuilt (a pause) while the others go on;
+* so the host enqueues steps in batches without reading anything, then reads the
+  per-system run table once: it rebuilds the lists of the paused systems on the device
+  (gpu/neighbours.py; the list sizes are read back at each build) and resumes them.
+  The batch is sized to end about where the next rebuild is expected (DeviceEnsemble._batch),
+  so the host is touched about once per rebuild.
 System k of an ensemble gives the same numbers, to the bit, as the same system alone.
 """
 import math
@@ -34,11 +38,23 @@ from ..core.walls import walls_advance
 from .device import device_function
 from .layout import ROW, SCRATCH, Layout, bundles, row_grain
 from .neighbours import DeviceNeighbours
-from .reductions import (BAD, CHECK_OPS, KINETIC, MAX, OVERLAP, POTENTIAL, SPEED2, SUM,
-                         block_rows, fold, ops_array)
+from .reductions import (BAD, COLUMN_OPS, KINETIC, LOW, MASS, MASS_HEIGHT, OVERLAP, SPEED2,
+                         SUM, block_rows, fold, move_bound, ops_array, potential_energy)
 from .reductions import kernels as reduction_kernels
 
 _KERNELS = {}
+COLUMNS = len(COLUMN_OPS)          # of the correction kernel's rows (reductions.py)
+# the per-system run table (K, RUN_COLUMNS) int64 that the device keeps within a chunk:
+# status (RUNNING, RELIST: paused until the host rebuilds its lists, or a final
+# run_chunk code), steps done, steps asked, whether the step under way is checked
+# (1, 2: checked without resetting the overlaps), step at the chunk's start, check
+# interval, stop condition
+STATUS, DONE_STEPS, GOAL, CHECK, FIRST_STEP, INTERVAL, KIND = range(7)
+RUN_COLUMNS = 7
+RUNNING = -1
+# steps enqueued between two reads of the run table: at most, and when nothing
+# predicts the next rebuild (engine.DeviceEnsemble._batch)
+BATCH_MAX, BATCH_START = 64, 8
 # the GPU's pair kernel sums on each grain only the pairs it lists (contacts.pair_row):
 # its gather reads back every pair that lists the grain (contacts.gather_grain)
 EVERY_PAIR = 1 << 62
@@ -55,6 +71,7 @@ def kernels():
     gather = device_function(gather_grain)
     advance = device_function(walls_advance)
     due = device_function(loop.rebuild_due)
+    verdict = device_function(loop.verdict)
 
     @cuda.jit
     def drift_kernel(row_first, row_system, mask, integrator, stage, clock, started,
@@ -113,16 +130,19 @@ def kernels():
                        masses, inertias, positions, reference_positions, velocities,
                        angular_velocities, orientations, accelerations,
                        angular_accelerations, fixed, periodic_flag, periodic_length, history,
-                       bound, ops):
-        """Gather and correct grain i (step scale * dt); the largest squared
-        displacement since the last build, speed and acceleration of the row go to
-        bound[row]."""
-        buf = cuda.shared.array((ROW, 3), float64)
+                       max_overlap, run, last, rows, ops):
+        """Gather and correct grain i (step scale * dt); the bound's measures of the row
+        (reductions.DISPLACED ...) go to rows[row], and when the step is checked (the
+        ``last`` stage, run[k, CHECK]) the measures of core/loop._checks too
+        (reductions.BAD ...; the grains' largest overlaps are then reset, unless
+        run[k, CHECK] is 2)."""
+        buf = cuda.shared.array((ROW, COLUMNS), float64)
         t = cuda.threadIdx.x
         k, i, ok = row_grain(row_first, row_system, mask)
-        buf[t, 0] = 0.0
-        buf[t, 1] = 0.0
-        buf[t, 2] = 0.0
+        check = run[k, CHECK] if last else 0
+        for q in range(COLUMNS):
+            buf[t, q] = 0.0
+        buf[t, LOW] = math.inf
         if ok:
             f = gather(i, masses[i], clock[k, loop.GX:loop.GZ + 1], own, reverse_start[k:],
                        reverse_pairs, EVERY_PAIR, pair_force, pair_torque_j, wall_start[k:],
@@ -132,7 +152,30 @@ def kernels():
                 forces, torques, masses, inertias, positions, reference_positions, velocities,
                 angular_velocities, orientations, accelerations, angular_accelerations,
                 fixed, periodic_flag[k], periodic_length[k], history)
-        block_rows(buf, 3, bound[cuda.blockIdx.x], ops)
+            if check != 0:
+                v2 = 0.0
+                w2 = 0.0
+                for d in range(3):
+                    if not (math.isfinite(positions[i, d]) and math.isfinite(velocities[i, d])
+                            and math.isfinite(forces[i, d])):
+                        buf[t, BAD] = 1.0
+                    v2 += velocities[i, d] ** 2
+                    w2 += angular_velocities[i, d] ** 2
+                buf[t, OVERLAP] = max_overlap[i]
+                if check == 1:
+                    max_overlap[i] = 0.0
+                if not fixed[i]:
+                    buf[t, SPEED2] = v2
+                    buf[t, KINETIC] = 0.5 * masses[i] * v2 + 0.5 * inertias[i] * w2
+                    gx, gy, gz = clock[k, loop.GX], clock[k, loop.GY], clock[k, loop.GZ]
+                    g = math.sqrt(gx ** 2 + gy ** 2 + gz ** 2)
+                    if g > 0.0:
+                        h = -(positions[i, 0] * gx + positions[i, 1] * gy
+                              + positions[i, 2] * gz) / g
+                        buf[t, LOW] = h
+                        buf[t, MASS_HEIGHT] = masses[i] * h
+                        buf[t, MASS] = masses[i]
+        block_rows(buf, COLUMNS if check != 0 else 3, rows[cuda.blockIdx.x], ops)
 
     @cuda.jit
     def decide_kernel(wb, mask, clock, offset, reference_offset, velocity, control):
@@ -145,14 +188,38 @@ def kernels():
                 clock[k], offset[a:b], reference_offset[a:b], velocity[a:b]) else 0
 
     @cuda.jit
-    def tick_kernel(mask, clock, started):
+    def finish_kernel(wb, mask, run, clock, started, folded, offset, reference_offset,
+                      velocity):
+        """The end of system k's step (thread k): its displacement bound, time, step
+        count and checks (core/loop.verdict) on the device; it stops (mask 0) with its
+        status when done, failed or its condition holds, and pauses with RELIST when its
+        lists must be rebuilt before the next step (core/loop.rebuild_due)."""
         k = cuda.grid(1)
-        if k < mask.size and mask[k] != 0:
-            clock[k, loop.TIME] += clock[k, loop.DT]
-            started[k] = 1
+        if k >= mask.size or mask[k] == 0:
+            return
+        clock[k, loop.MOVE] = move_bound(folded[k], clock[k, loop.DT])
+        clock[k, loop.TIME] += clock[k, loop.DT]
+        started[k] = 1
+        done = run[k, DONE_STEPS] + 1
+        run[k, DONE_STEPS] = done
+        code = loop.DONE
+        if run[k, CHECK] != 0:
+            code = verdict(folded[k, BAD] == 0.0, folded[k, OVERLAP], folded[k, SPEED2],
+                           folded[k, KINETIC], potential_energy(folded[k], clock[k]),
+                           run[k, KIND], clock[k])
+        if code != loop.DONE or done == run[k, GOAL]:
+            run[k, STATUS] = code
+            mask[k] = 0
+            return
+        step = run[k, FIRST_STEP] + done + 1
+        run[k, CHECK] = 1 if step % run[k, INTERVAL] == 0 or done + 1 == run[k, GOAL] else 0
+        a, b = wb[k], wb[k + 1]
+        if due(clock[k], offset[a:b], reference_offset[a:b], velocity[a:b]):
+            run[k, STATUS] = loop.RELIST
+            mask[k] = 0
 
     _KERNELS.update(drift=drift_kernel, walls=walls_kernel, force=force_kernel,
-                    correct=correct_kernel, decide=decide_kernel, tick=tick_kernel)
+                    correct=correct_kernel, decide=decide_kernel, finish=finish_kernel)
     return _KERNELS
 
 
@@ -169,10 +236,18 @@ class DeviceEnsemble:
         self.layout = Layout(self.sims)
         self.lists = DeviceNeighbours(self.layout)
         self._masks = {}
+        # the run table and the mask of the systems stepping, kept on the device and
+        # written by its kernels within a chunk (finish_kernel)
+        self.run = cuda.device_array((self.layout.k, RUN_COLUMNS), np.int64)
+        self.mask = cuda.device_array(self.layout.k, np.int64)
         # benchmarks set count_bytes: the bytes of the arrays handed to the per-grain
         # kernels, each counted once per launch (an estimate of the memory traffic)
         self.count_bytes = False
         self.launched_bytes = 0
+        # reads of the run table between batches, over all chunks (benchmarks, tests),
+        # and each system's bound per step at the last read (nan: not yet seen; _batch)
+        self.reads = 0
+        self._pace = np.full(self.layout.k, np.nan)
 
     def _mask(self, name, values):
         """The device copy of the (K,) int mask ``values``: one array per name, written
@@ -205,12 +280,10 @@ class DeviceEnsemble:
         self.control = cuda.device_array(systems, np.int64)
         self.lost = cuda.device_array((rows, 2))
         self.totals = cuda.device_array((rows, 3 * walls + 3))
-        self.partial = cuda.device_array((rows, 6))
-        self.checked = cuda.device_array((systems, 6))
-        self.folded = cuda.device_array((systems, max(6, self.totals.shape[1])))
+        self.partial = cuda.device_array((rows, COLUMNS))
+        self.folded = cuda.device_array((systems, max(COLUMNS, self.totals.shape[1])))
         self.ops = {"totals": ops_array([SUM] * self.totals.shape[1]),
-                    "lost": ops_array([SUM] * 2), "bound": ops_array([MAX] * 3),
-                    "checks": ops_array(CHECK_OPS)}
+                    "lost": ops_array([SUM] * 2), "columns": ops_array(COLUMN_OPS)}
 
     def memory_bytes(self):
         """Bytes of every array this engine keeps on the device (after a chunk or an
@@ -219,7 +292,7 @@ class DeviceEnsemble:
         counted."""
         arrays = [a for bundle in self.dev.values() for a in bundle]
         arrays += [self.model, self.params, self.started, self.cutoff, self.control,
-                   self.lost, self.totals, self.partial, self.checked, self.folded,
+                   self.run, self.mask, self.lost, self.totals, self.partial, self.folded,
                    *self.ops.values(), *self.layout.dev.values()]
         return sum(a.nbytes for a in arrays) + self.lists.memory_bytes()
 
@@ -279,59 +352,45 @@ class DeviceEnsemble:
         self.k["totals_partial"][(lay.rows + 127) // 128, 128](
             lay.dev["row_first"], lay.dev["row_system"], lay.dev["wb"], mask, w[10], w[11],
             w[16], w[6], self.lost, self.totals)
-        fold(self.k, lay, self.totals, self.ops["totals"], self.folded)
-        self._systems("totals_apply", self.folded, lay.dev["wb"], mask, w[8], clock, scale,
+        # the view of as many columns as the rows have (totals_apply counts the walls by it)
+        totals = self.folded[:, :self.totals.shape[1]]
+        fold(self.k, lay, self.totals, self.ops["totals"], totals)
+        self._systems("totals_apply", totals, lay.dev["wb"], mask, w[8], clock, scale,
                       divisor)
 
-    def _correct(self, mask, stage, scale):
+    def _correct(self, mask, stage, scale, last):
+        """Gather and correct the masked systems (scale * dt), and fold the rows of the
+        correction kernel into ``folded`` (the bound; on a checked ``last`` stage, the
+        checks too)."""
         g, p, w, per = (self.dev[k] for k in ("grains", "pairs", "walls", "periodic"))
         clock, lay = self.dev["loop"][0], self.layout
         integrator = int(self.sims[0].counters[loop.INTEGRATOR])
         self._rows("correct", mask, integrator, stage, clock, scale, self.started,
                    int(self.sims[0].counters[loop.DIM]), p[9], p[6], p[7], p[8], p[10],
                    w[10], w[16], w[17], g[4], g[5], g[9], g[10], g[0], g[13], g[1], g[2], g[3],
-                   g[6], g[7], g[12], per[0], per[2], self.dev["loop"][1], self.partial,
-                   self.ops["bound"])
-        fold(self.k, lay, self.partial[:, :3], self.ops["bound"], self.folded[:, :3])
-        self._systems("bound_apply", self.folded[:, :3], mask, clock, scale)
+                   g[6], g[7], g[12], per[0], per[2], self.dev["loop"][1], g[14], self.run,
+                   last, self.partial, self.ops["columns"])
+        fold(self.k, lay, self.partial, self.ops["columns"], self.folded[:, :COLUMNS])
 
-    def _check(self, mask, reset):
-        """The reductions of core/loop._checks for the masked systems: (K, 6) indexed by
-        reductions.BAD ... POTENTIAL; their max_overlap is set back to zero when
-        ``reset``."""
-        g, lay = self.dev["grains"], self.layout
-        clock = self.dev["loop"][0]
-        blocks = (lay.rows + 127) // 128
-        self.k["checks_partial"][blocks, 128](
-            lay.dev["row_first"], lay.dev["row_system"], mask, g[0], g[1], g[2], g[4], g[9],
-            g[10], g[12], g[14], clock, reset, self.partial)
-        fold(self.k, lay, self.partial[:, :POTENTIAL], self.ops["checks"],
-             self.checked[:, :POTENTIAL])
-        self.k["potential_partial"][blocks, 128](
-            lay.dev["row_first"], lay.dev["row_system"], mask, g[0], g[9], g[12], clock,
-            self.checked, self.partial)
-        fold(self.k, lay, self.partial[:, POTENTIAL:], self.ops["checks"][POTENTIAL:],
-             self.checked[:, POTENTIAL:])
-        return self.checked.copy_to_host()
-
-    def _statuses(self, mask):
-        """core/loop._checks on the device results: a run_chunk status code for each
-        masked system (DONE for the others)."""
-        out = self._check(self._mask("check", mask), True)
-        status = np.full(self.layout.k, loop.DONE)
-        for k in np.flatnonzero(mask):
-            clock, counters = self.sims[k].clock, self.sims[k].counters
-            kind, value = counters[loop.COND_KIND], clock[loop.COND_VALUE]
-            if out[k, BAD] != 0.0:
-                status[k] = loop.NAN
-            elif out[k, OVERLAP] > clock[loop.OVERLAP_LIMIT]:
-                status[k] = loop.OVERLAP
-            elif kind == loop.MAX_SPEED_BELOW and math.sqrt(out[k, SPEED2]) < value:
-                status[k] = loop.CONDITION
-            elif kind == loop.ENERGY_RATIO_BELOW and \
-                    out[k, KINETIC] <= value * out[k, POTENTIAL]:
-                status[k] = loop.CONDITION
-        return status
+    def _step(self, integrator, stages):
+        """Enqueue one step of every system the device mask holds: nothing is read
+        back; finish_kernel stops or pauses the systems."""
+        mask, clock, w = self.mask, self.dev["loop"][0], self.dev["walls"]
+        for stage in range(stages):
+            g = self.dev["grains"]
+            self._rows("drift", mask, integrator, stage, clock, self.started, g[0], g[1],
+                       g[2], g[3], g[6], g[7], g[12], self.dev["loop"][1])
+            if stage == 0:
+                self._systems("walls", self.layout.dev["wb"], mask, w[2], w[3], w[4], w[5],
+                              w[6], w[8], clock)
+            self._evaluate(mask, 1.0, float(stages))
+            last = stage == stages - 1
+            self._correct(mask, stage, 1.0, last)
+            if last:
+                self._systems("finish", self.layout.dev["wb"], mask, self.run, clock,
+                              self.started, self.folded, w[5], w[9], w[6])
+            else:
+                self._systems("bound_apply", self.folded, mask, clock, 1.0)
 
     def chunk(self, nsteps):
         """Up to nsteps[k] steps of each system k on the device: (status (K,), steps done
@@ -347,76 +406,115 @@ class DeviceEnsemble:
                 sim.state.step = sim.step
 
     def _steps(self, nsteps):
+        """The chunk: lists forced or due rebuilt and unprimed systems primed first,
+        then batches of steps enqueued without a read; after each batch one read of the
+        run table says which systems stopped or paused for a rebuild (the host builds
+        their lists and resumes them) and how many steps the next batch gets."""
         sims, systems = self.sims, self.layout.k
-        status = np.full(systems, loop.DONE)
-        done = np.zeros(systems, np.int64)
-        active = (nsteps > 0).astype(np.int64)
         counters = np.stack([s.counters for s in sims])     # host copy, written back
         integrator = int(counters[0, loop.INTEGRATOR])
         stages = int(STAGES[integrator])
-
-        def stop(which, code, steps):
-            status[which] = code
-            done[which] = steps
-            active[which] = 0
-
-        s = 0
+        table = np.zeros((systems, RUN_COLUMNS), np.int64)
+        table[:, STATUS] = np.where(nsteps > 0, RUNNING, loop.DONE)
+        table[:, GOAL] = nsteps
+        table[:, FIRST_STEP] = counters[:, loop.STEP]
+        table[:, INTERVAL] = counters[:, loop.CHECK_INTERVAL]
+        table[:, KIND] = counters[:, loop.COND_KIND]
+        rebuilt = np.zeros(systems, np.int64)
+        since = np.zeros(systems, np.int64)     # steps done at each system's last build
         try:
-            while active.any():
-                clock, w = self.dev["loop"][0], self.dev["walls"]
-                forced = active * (counters[:, loop.FORCE_REBUILD] != 0)
-                due = forced.copy()
-                if (active & ~forced.astype(bool)).any():
-                    self._systems("decide", self.layout.dev["wb"],
-                                  self._mask("decide", active - forced), clock, w[5], w[9],
-                                  w[6], self.control)
-                    due |= (active - forced) * self.control.copy_to_host()
-                if due.any():
-                    bad = self._rebuild(due)
-                    if bad.any():
-                        stop(bad != 0, loop.NAN, s)
-                        continue
-                    counters[due != 0, loop.FORCE_REBUILD] = 0
-                    counters[due != 0, loop.REBUILDS] += 1
-                    clock, w = self.dev["loop"][0], self.dev["walls"]    # may be new
-                mask = self._mask("active", active)
-                prime = active * (counters[:, loop.PRIMED] == 0)
-                if prime.any():
-                    primed = self._mask("prime", prime)
-                    self._evaluate(primed, 0.0, 1.0)
-                    self._correct(primed, 0, 0.0)
-                    counters[prime != 0, loop.PRIMED] = 1
-                    # grains that start too deep in each other or in a wall: stop first
-                    worst = self._check(primed, False)[:, OVERLAP]
-                    limits = np.array([x.clock[loop.OVERLAP_LIMIT] for x in sims])
-                    deep = (prime != 0) & (worst > limits)
-                    if deep.any():
-                        stop(deep, loop.OVERLAP, s)
-                        if not active.any():
-                            break
-                        mask = self._mask("active", active)
-                for stage in range(stages):
-                    g = self.dev["grains"]
-                    self._rows("drift", mask, integrator, stage, clock, self.started, g[0],
-                               g[1], g[2], g[3], g[6], g[7], g[12], self.dev["loop"][1])
-                    if stage == 0:
-                        self._systems("walls", self.layout.dev["wb"], mask, w[2], w[3], w[4],
-                                      w[5], w[6], w[8], clock)
-                    self._evaluate(mask, 1.0, float(stages))
-                    self._correct(mask, stage, 1.0)
-                self._systems("tick", mask, clock, self.started)
-                counters[active != 0, loop.STEP] += 1
-                counters[active != 0, loop.HISTORY_STEPS] += 1
-                s += 1
-                check = active * ((counters[:, loop.STEP] % counters[:, loop.CHECK_INTERVAL]
-                                   == 0) | (nsteps == s))
-                if check.any():
-                    codes = self._statuses(check)
-                    halted = (check != 0) & (codes != loop.DONE)
-                    for code in np.unique(codes[halted]):
-                        stop(halted & (codes == code), code, s)
-                stop((active != 0) & (nsteps == s), loop.DONE, s)
+            running = table[:, STATUS] == RUNNING
+            forced = running & (counters[:, loop.FORCE_REBUILD] != 0)
+            table[forced | self._due(running & ~forced), STATUS] = loop.RELIST
+            self._resume(table, rebuilt, since)
+            prime = (table[:, STATUS] == RUNNING) & (counters[:, loop.PRIMED] == 0)
+            if prime.any():
+                self._prime(prime, table, counters)
+            first = table[:, FIRST_STEP] + 1
+            table[:, CHECK] = (first % table[:, INTERVAL] == 0) | (table[:, GOAL] == 1)
+            self.run.copy_to_device(table)
+            self.mask.copy_to_device((table[:, STATUS] == RUNNING).astype(np.int64))
+            batch = BATCH_START
+            while (table[:, STATUS] == RUNNING).any():
+                for _ in range(batch):
+                    self._step(integrator, stages)
+                table = self.run.copy_to_host()
+                self.reads += 1
+                if (table[:, STATUS] == loop.RELIST).any():
+                    self._resume(table, rebuilt, since)
+                    self.run.copy_to_device(table)
+                    self.mask.copy_to_device((table[:, STATUS] == RUNNING).astype(np.int64))
+                batch = self._batch(table, since)
         finally:
+            done = table[:, DONE_STEPS]
+            counters[:, loop.STEP] += done
+            counters[:, loop.HISTORY_STEPS] += done
+            counters[:, loop.REBUILDS] += rebuilt
+            counters[rebuilt > 0, loop.FORCE_REBUILD] = 0
             for k, sim in enumerate(sims):
                 sim.counters[...] = counters[k]
-        return status, done
+        return table[:, STATUS].copy(), done.copy()
+
+    def _due(self, which):
+        """The systems of the boolean mask ``which`` whose lists must be rebuilt before
+        their next step (core/loop.rebuild_due, on the device; one read)."""
+        if not which.any():
+            return which
+        w = self.dev["walls"]
+        self._systems("decide", self.layout.dev["wb"], self._mask("decide", which),
+                      self.dev["loop"][0], w[5], w[9], w[6], self.control)
+        return which & (self.control.copy_to_host() != 0)
+
+    def _resume(self, table, rebuilt, since):
+        """Rebuild the lists of the systems paused with RELIST in the run table (host
+        copy) and set them RUNNING again, or NAN where their positions are not
+        finite."""
+        due = table[:, STATUS] == loop.RELIST
+        if not due.any():
+            return
+        bad = self._rebuild(due.astype(np.int64)) != 0
+        table[due & bad, STATUS] = loop.NAN
+        ok = due & ~bad
+        table[ok, STATUS] = RUNNING
+        rebuilt[ok] += 1
+        since[ok] = table[ok, DONE_STEPS]
+
+    def _prime(self, prime, table, counters):
+        """The forces at the start of the run of the systems of the boolean mask
+        ``prime``; those whose grains start too deep in each other or in a wall stop
+        with OVERLAP before their first step."""
+        mask = self._mask("prime", prime)
+        table[prime, CHECK] = 2                 # measure the overlaps, do not reset them
+        self.run.copy_to_device(table)
+        self._evaluate(mask, 0.0, 1.0)
+        self._correct(mask, 0, 0.0, True)
+        self._systems("bound_apply", self.folded, mask, self.dev["loop"][0], 0.0)
+        counters[prime, loop.PRIMED] = 1
+        worst = self.folded.copy_to_host()[:, OVERLAP]
+        limits = np.array([s.clock[loop.OVERLAP_LIMIT] for s in self.sims])
+        table[prime & (worst > limits), STATUS] = loop.OVERLAP
+
+    def _batch(self, table, since):
+        """Steps in the next batch: the steps left before the next rebuild of the running
+        systems (the lowest tenth of them), from 1 to BATCH_MAX and no more than any of
+        them has left.  n steps after its build, a system's bound clock[MOVE] covers
+        n + 1 steps of motion (its displacement plus one step ahead): at that pace c
+        (kept from the last read, across rebuilds and chunks) its finish pauses it after
+        step floor(skin / 2 / c) since its build, where the batch should end.  Only the
+        speed depends on it: a batch too long leaves a paused system idle to its end,
+        one too short costs a read."""
+        running = table[:, STATUS] == RUNNING
+        if not running.any():
+            return 0
+        clock = self.dev["loop"][0].copy_to_host()
+        steps = table[:, DONE_STEPS] - since
+        seen = running & (steps > 0)
+        self._pace[seen] = clock[seen, loop.MOVE] / (steps[seen] + 1)
+        pace, half = self._pace[running], 0.5 * clock[running, loop.SKIN]
+        ahead = np.full(pace.size, float(BATCH_START))            # nothing to go by yet
+        ahead[pace == 0.0] = BATCH_MAX                                  # nothing moves
+        moving = pace > 0.0
+        ahead[moving] = np.floor(half[moving] / pace[moving]) - steps[running][moving]
+        left = (table[:, GOAL] - table[:, DONE_STEPS])[running]
+        ahead = min(float(np.quantile(ahead, 0.1, method="lower")), float(left.min()))
+        return int(np.clip(ahead, 1, BATCH_MAX))

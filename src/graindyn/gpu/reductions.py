@@ -1,12 +1,13 @@
 """Reductions over grains on the device (issue 6): the wall totals and dissipated
-energies of each force evaluation, the half-skin displacement bound, and the checks
-of core/loop._checks (non-finite values, largest overlap, largest speed, energies),
-for each system of an ensemble (gpu/layout.py; one system is the case K = 1).
+energies of each force evaluation, and, from the correction kernel, the half-skin
+displacement bound and the measures of core/loop._checks (non-finite values, largest
+overlap, largest speed, energies), for each system of an ensemble (gpu/layout.py; one
+system is the case K = 1).
 
 Each is three steps: one row per at most ROW consecutive grains of one system (the
-energy dissipated and the displacement bound come as rows straight from the force and
-correction kernels, reduced over each block by a tree in shared memory; the others are
-reduced by one thread per row, in grain order); ``fold`` reduces each column over the
+energy dissipated, the bound and the checks come as rows straight from the force and
+correction kernels, reduced over each block by a tree in shared memory; the wall totals
+are reduced by one thread per row, in grain order); ``fold`` reduces each column over the
 rows of each system with one block per system (thread t takes rows t, t + width, ...
 in order, then a tree; the width depends only on the system's own row count); one
 thread per system applies the results.  No per-grain scratch array is needed.  The
@@ -23,9 +24,13 @@ from ..core import loop
 
 FOLD = 256             # most threads of a folding block (a power of two)
 SUM, MAX, MIN = 0, 1, 2
-# columns of the check partials, and how each folds
-BAD, SPEED2, OVERLAP, KINETIC, LOW, POTENTIAL = range(6)
-CHECK_OPS = (MAX, MAX, MAX, SUM, MIN, SUM)
+# columns of the correction kernel's rows: the squared displacement since the last
+# build, speed and acceleration (the bound), then the checks: any non-finite value,
+# squared speed, overlap [m], kinetic energy [J], lowest height [m], sum of mass times
+# height [kg m] and of mass [kg] (free grains), and how each folds
+DISPLACED, SPEED, ACCELERATION, BAD, SPEED2, OVERLAP, KINETIC, LOW, MASS_HEIGHT, MASS = \
+    range(10)
+COLUMN_OPS = (MAX, MAX, MAX, MAX, MAX, MAX, SUM, MIN, SUM, SUM)
 _KERNELS = {}
 
 
@@ -74,6 +79,24 @@ def block_rows(buf, values, row, ops):
     if t == 0:
         for q in range(values):
             row[q] = buf[0, q]
+
+
+@cuda.jit(device=True)
+def move_bound(folded, dt):
+    """The displacement bound of the half-skin rule from a system's folded rows [m]:
+    max |r - r_ref| + max |v| dt + max |a| dt^2 / 2."""
+    return (math.sqrt(folded[DISPLACED]) + math.sqrt(folded[SPEED]) * dt
+            + 0.5 * math.sqrt(folded[ACCELERATION]) * dt * dt)
+
+
+@cuda.jit(device=True)
+def potential_energy(folded, clock):
+    """Potential energy [J] of a system's free grains above the lowest, from its
+    folded check columns: g (sum m h - h_low sum m)."""
+    g = math.sqrt(clock[loop.GX] ** 2 + clock[loop.GY] ** 2 + clock[loop.GZ] ** 2)
+    if g == 0.0 or folded[MASS] == 0.0:
+        return 0.0
+    return g * (folded[MASS_HEIGHT] - folded[LOW] * folded[MASS])
 
 
 def kernels():
@@ -166,77 +189,11 @@ def kernels():
 
     @cuda.jit
     def bound_apply(folded, mask, clock, scale):
-        """clock[k, MOVE] = max |r - r_ref| + max |v| dt + max |a| dt^2 / 2, with
-        dt = scale * clock[k, DT]."""
+        """clock[k, MOVE]: move_bound of system k's folded rows."""
         k = cuda.grid(1)
         if k < mask.size and mask[k] != 0:
-            dt = scale * clock[k, loop.DT]
-            clock[k, loop.MOVE] = (math.sqrt(folded[k, 0]) + math.sqrt(folded[k, 1]) * dt
-                                   + 0.5 * math.sqrt(folded[k, 2]) * dt * dt)
-
-    @cuda.jit
-    def checks_partial(row_first, row_system, mask, positions, velocities,
-                       angular_velocities, forces, masses, inertias, fixed, max_overlap,
-                       clock, reset, partial):
-        """Row c: any non-finite position, velocity or force; largest squared speed of a
-        free grain; largest overlap (reset to 0 when ``reset``); kinetic energy [J]
-        and lowest height [m] of the free grains."""
-        c = cuda.grid(1)
-        if c >= partial.shape[0]:
-            return
-        k = row_system[c]
-        if mask[k] == 0:
-            return
-        gx, gy, gz = clock[k, loop.GX], clock[k, loop.GY], clock[k, loop.GZ]
-        g = math.sqrt(gx ** 2 + gy ** 2 + gz ** 2)
-        bad = speed2 = worst = kinetic = 0.0
-        low = math.inf
-        for i in range(row_first[c], row_first[c + 1]):
-            v2 = 0.0
-            w2 = 0.0
-            for d in range(3):
-                if not (math.isfinite(positions[i, d]) and math.isfinite(velocities[i, d])
-                        and math.isfinite(forces[i, d])):
-                    bad = 1.0
-                v2 += velocities[i, d] ** 2
-                w2 += angular_velocities[i, d] ** 2
-            worst = max(worst, max_overlap[i])
-            if reset:
-                max_overlap[i] = 0.0
-            if not fixed[i]:
-                speed2 = max(speed2, v2)
-                kinetic += 0.5 * masses[i] * v2 + 0.5 * inertias[i] * w2
-                if g > 0.0:
-                    low = min(low, -(positions[i, 0] * gx + positions[i, 1] * gy
-                                     + positions[i, 2] * gz) / g)
-        partial[c, BAD] = bad
-        partial[c, SPEED2] = speed2
-        partial[c, OVERLAP] = worst
-        partial[c, KINETIC] = kinetic
-        partial[c, LOW] = low
-
-    @cuda.jit
-    def potential_partial(row_first, row_system, mask, positions, masses, fixed, clock, out,
-                          partial):
-        """Row c: potential energy [J] of free grains above the lowest (out[k, LOW])."""
-        c = cuda.grid(1)
-        if c >= partial.shape[0]:
-            return
-        k = row_system[c]
-        if mask[k] == 0:
-            return
-        gx, gy, gz = clock[k, loop.GX], clock[k, loop.GY], clock[k, loop.GZ]
-        g = math.sqrt(gx ** 2 + gy ** 2 + gz ** 2)
-        potential = 0.0
-        if g > 0.0:
-            for i in range(row_first[c], row_first[c + 1]):
-                if not fixed[i]:
-                    h = -(positions[i, 0] * gx + positions[i, 1] * gy
-                          + positions[i, 2] * gz) / g
-                    potential += masses[i] * g * (h - out[k, LOW])
-        partial[c, POTENTIAL] = potential
+            clock[k, loop.MOVE] = move_bound(folded[k], scale * clock[k, loop.DT])
 
     _KERNELS.update(fold=fold, totals_partial=totals_partial, totals_apply=totals_apply,
-                    bound_apply=bound_apply, checks_partial=checks_partial,
-                    potential_partial=potential_partial)
+                    bound_apply=bound_apply)
     return _KERNELS
