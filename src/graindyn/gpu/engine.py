@@ -38,8 +38,9 @@ from ..core.walls import walls_advance
 from .device import device_function
 from .layout import ROW, SCRATCH, Layout, bundles, row_grain
 from .neighbours import DeviceNeighbours
-from .reductions import (BAD, COLUMN_OPS, KINETIC, LOW, MASS, MASS_HEIGHT, OVERLAP, SPEED2,
-                         SUM, block_rows, fold, move_bound, ops_array, potential_energy)
+from .reductions import (ACCELERATION, BAD, COLUMN_OPS, DISPLACED, KINETIC, LOW, MASS,
+                         MASS_HEIGHT, OVERLAP, SPEED, SPEED2, SUM, block_rows, fold,
+                         move_bound, ops_array, potential_energy)
 from .reductions import kernels as reduction_kernels
 
 _KERNELS = {}
@@ -244,10 +245,12 @@ class DeviceEnsemble:
         # kernels, each counted once per launch (an estimate of the memory traffic)
         self.count_bytes = False
         self.launched_bytes = 0
-        # reads of the run table between batches, over all chunks (benchmarks, tests),
-        # and each system's bound per step at the last read (nan: not yet seen; _batch)
+        # reads of the run table between batches, over all chunks (benchmarks, tests);
+        # each system's step at its last build (-1: none seen) and the steps between
+        # its last two builds (0: not known), for _batch
         self.reads = 0
-        self._pace = np.full(self.layout.k, np.nan)
+        self._built = np.full(self.layout.k, -1, np.int64)
+        self._cycle = np.zeros(self.layout.k, np.int64)
 
     def _mask(self, name, values):
         """The device copy of the (K,) int mask ``values``: one array per name, written
@@ -421,12 +424,11 @@ class DeviceEnsemble:
         table[:, INTERVAL] = counters[:, loop.CHECK_INTERVAL]
         table[:, KIND] = counters[:, loop.COND_KIND]
         rebuilt = np.zeros(systems, np.int64)
-        since = np.zeros(systems, np.int64)     # steps done at each system's last build
         try:
             running = table[:, STATUS] == RUNNING
             forced = running & (counters[:, loop.FORCE_REBUILD] != 0)
             table[forced | self._due(running & ~forced), STATUS] = loop.RELIST
-            self._resume(table, rebuilt, since)
+            self._resume(table, rebuilt)
             prime = (table[:, STATUS] == RUNNING) & (counters[:, loop.PRIMED] == 0)
             if prime.any():
                 self._prime(prime, table, counters)
@@ -434,17 +436,17 @@ class DeviceEnsemble:
             table[:, CHECK] = (first % table[:, INTERVAL] == 0) | (table[:, GOAL] == 1)
             self.run.copy_to_device(table)
             self.mask.copy_to_device((table[:, STATUS] == RUNNING).astype(np.int64))
-            batch = BATCH_START
+            batch = self._batch(table, first=True)
             while (table[:, STATUS] == RUNNING).any():
                 for _ in range(batch):
                     self._step(integrator, stages)
                 table = self.run.copy_to_host()
                 self.reads += 1
                 if (table[:, STATUS] == loop.RELIST).any():
-                    self._resume(table, rebuilt, since)
+                    self._resume(table, rebuilt)
                     self.run.copy_to_device(table)
                     self.mask.copy_to_device((table[:, STATUS] == RUNNING).astype(np.int64))
-                batch = self._batch(table, since)
+                batch = self._batch(table)
         finally:
             done = table[:, DONE_STEPS]
             counters[:, loop.STEP] += done
@@ -465,7 +467,7 @@ class DeviceEnsemble:
                       self.dev["loop"][0], w[5], w[9], w[6], self.control)
         return which & (self.control.copy_to_host() != 0)
 
-    def _resume(self, table, rebuilt, since):
+    def _resume(self, table, rebuilt):
         """Rebuild the lists of the systems paused with RELIST in the run table (host
         copy) and set them RUNNING again, or NAN where their positions are not
         finite."""
@@ -477,7 +479,10 @@ class DeviceEnsemble:
         ok = due & ~bad
         table[ok, STATUS] = RUNNING
         rebuilt[ok] += 1
-        since[ok] = table[ok, DONE_STEPS]
+        now = table[ok, FIRST_STEP] + table[ok, DONE_STEPS]
+        last = self._built[ok]
+        self._cycle[ok] = np.where(last >= 0, now - last, 0)
+        self._built[ok] = now
 
     def _prime(self, prime, table, counters):
         """The forces at the start of the run of the systems of the boolean mask
@@ -494,27 +499,38 @@ class DeviceEnsemble:
         limits = np.array([s.clock[loop.OVERLAP_LIMIT] for s in self.sims])
         table[prime & (worst > limits), STATUS] = loop.OVERLAP
 
-    def _batch(self, table, since):
+    def _batch(self, table, first=False):
         """Steps in the next batch: the steps left before the next rebuild of the running
         systems (the lowest tenth of them), from 1 to BATCH_MAX and no more than any of
-        them has left.  n steps after its build, a system's bound clock[MOVE] covers
-        n + 1 steps of motion (its displacement plus one step ahead): at that pace c
-        (kept from the last read, across rebuilds and chunks) its finish pauses it after
-        step floor(skin / 2 / c) since its build, where the batch should end.  Only the
-        speed depends on it: a batch too long leaves a paused system idle to its end,
-        one too short costs a read."""
+        them has left.  From the last step's folded rows, the grain furthest from its
+        place at the build (d, 0 just after a build) is assumed to go on at the largest
+        speed v and acceleration a of its system: the bound d + v T + a T^2 / 2
+        (reductions.move_bound, T = (m + 1) dt) passes half the skin at the m-th step
+        from now, whose finish pauses the system; and no further than its last cycle
+        between two builds, if it is not past it (grains that speed up or were briefly
+        at rest).  The ``first`` batch of a chunk has no rows to go by: BATCH_START steps,
+        within the same bounds.  Only the speed depends on it: a batch too long leaves a
+        paused system idle to its end, one too short costs a read."""
         running = table[:, STATUS] == RUNNING
         if not running.any():
             return 0
-        clock = self.dev["loop"][0].copy_to_host()
-        steps = table[:, DONE_STEPS] - since
-        seen = running & (steps > 0)
-        self._pace[seen] = clock[seen, loop.MOVE] / (steps[seen] + 1)
-        pace, half = self._pace[running], 0.5 * clock[running, loop.SKIN]
-        ahead = np.full(pace.size, float(BATCH_START))            # nothing to go by yet
-        ahead[pace == 0.0] = BATCH_MAX                                  # nothing moves
-        moving = pace > 0.0
-        ahead[moving] = np.floor(half[moving] / pace[moving]) - steps[running][moving]
+        built, cycle = self._built[running], self._cycle[running]
+        steps = (table[:, FIRST_STEP] + table[:, DONE_STEPS])[running] - built
+        if first:
+            ahead = np.full(built.size, float(BATCH_START))
+        else:
+            folded = self.folded.copy_to_host()[running]
+            clock = self.dev["loop"][0].copy_to_host()[running]
+            d = np.where((built >= 0) & (steps == 0), 0.0, np.sqrt(folded[:, DISPLACED]))
+            v, a = np.sqrt(folded[:, SPEED]), np.sqrt(folded[:, ACCELERATION])
+            room = np.maximum(0.5 * clock[:, loop.SKIN] - d, 0.0)
+            # the root T of a T^2 / 2 + v T = room, in the form that holds for a = 0
+            root = v + np.sqrt(v * v + 2.0 * a * room)
+            with np.errstate(divide="ignore"):
+                ahead = np.where(root > 0.0,
+                                 np.floor(2.0 * room / root / clock[:, loop.DT]), BATCH_MAX)
+        within = (built >= 0) & (cycle > steps)
+        ahead[within] = np.minimum(ahead[within], (cycle - steps)[within])
         left = (table[:, GOAL] - table[:, DONE_STEPS])[running]
         ahead = min(float(np.quantile(ahead, 0.1, method="lower")), float(left.min()))
         return int(np.clip(ahead, 1, BATCH_MAX))
