@@ -1,7 +1,7 @@
 """graindyn side of the LAMMPS benchmark (../shared/bench/run_all.py --custom ...).
 
     python benchmarks/lammps_bed.py STATE CYL SIZE E e DT SKIN WARM STEPS THREADS [LAWS]
-                                    [--orientations] [--file-order]
+                                    [--orientations] [--file-order] [--layer NAME]
 
 Loads the settled bed STATE (x y z r per line, SI), builds the same container (CYL 0:
 box [0, SIZE]^2 with a floor at z = 0 and an open top; CYL 1: cylinder of radius SIZE
@@ -14,7 +14,9 @@ orientation, so the grains' orientations are not turned (Simulation(orientations
 the same trajectory) unless --orientations is given (graindyn's default).
 The grains are put in cell order on loading (graindyn.cell_order, cells of the
 neighbour cutoff 2 R_max + SKIN), as LAMMPS sorts its atoms into bins (`atom_modify
-sort`, on by default); --file-order keeps the order of STATE.
+sort`, on by default); --file-order keeps the order of STATE.  --layer NAME starts numba's threads on that
+threading layer (omp, workqueue or tbb) before graindyn is imported, so that a layer
+graindyn would not choose (TBB) can be timed too; graindyn's own choice otherwise.
 
 LAWS (optional, not used by run_all.py) swaps the contact model, to time another law on
 the same bed: "normal,damping,tangential[,rolling[,twisting]]".  The linear and
@@ -56,10 +58,25 @@ def bed(state_file, cyl, size, young, rest, dt, skin, laws=("hertz", "tsuji", "m
                          check_interval=1000, orientations=orientations)
 
 
+def start_threads(layer):
+    """numba's threads started on ``layer``, before graindyn chooses one."""
+    import numba
+    from numba.np.ufunc import parallel
+
+    numba.config.THREADING_LAYER = layer
+    parallel._launch_threads()
+    if numba.threading_layer() != layer:
+        sys.exit(f"threading layer {layer} did not start ({numba.threading_layer()})")
+
+
 def main(argv):
     orientations = "--orientations" in argv
     sort = "--file-order" not in argv
     argv = [a for a in argv if a not in ("--orientations", "--file-order")]
+    if "--layer" in argv:
+        k = argv.index("--layer")
+        start_threads(argv[k + 1])
+        del argv[k:k + 2]
     if len(argv) not in (10, 11):
         sys.exit(__doc__)
     state_file, cyl, size, young, rest, dt, skin, warm, steps, threads = argv[:10]
@@ -81,7 +98,7 @@ def main(argv):
     print(f"zpp {coordination_number(sim):.4f}")
     print(f"particle_steps_per_s {n * int(steps) / wall:.4g} threads {threads} N {n} "
           f"array_bytes_per_grain {sim.memory_bytes() / n:.0f} peak_rss_bytes {rss} "
-          f"rebuilds {sim.rebuilds}")
+          f"rebuilds {sim.rebuilds} layer {numba.threading_layer()}")
 
 
 if __name__ == "__main__":

@@ -26,6 +26,8 @@ of the engine source: any edit starts a fresh cache and nothing stale is ever lo
 The hash covers physics/, core/ (the kernels and every constant they read) and any
 other module that imports this one; pure-Python layers (config, output, CLI, run
 driver) are left out, so editing them keeps the cache.
+The folder's name also carries numba's threading layer (chosen in _threads, imported
+first so that the layer is set before anything parallel is compiled).
 ``GRAINDYN_CACHE_DIR`` moves the root (default ~/.cache/graindyn).
 """
 import hashlib
@@ -35,6 +37,8 @@ import types
 
 import numba
 from numba.core.dispatcher import Dispatcher
+
+from . import _threads
 
 _SOURCE = pathlib.Path(__file__).parent
 ENGINE = ("physics", "core", "_jit.py")
@@ -54,7 +58,7 @@ def source_digest():
 
 CACHE_ROOT = pathlib.Path(os.environ.get("GRAINDYN_CACHE_DIR",
                                          pathlib.Path.home() / ".cache" / "graindyn"))
-CACHE_DIR = CACHE_ROOT / source_digest()
+CACHE_DIR = CACHE_ROOT / f"{source_digest()}-{_threads.LAYER}"
 numba.config.CACHE_DIR = str(CACHE_DIR)
 
 scalar = numba.njit(cache=True, error_model="numpy", inline="always")

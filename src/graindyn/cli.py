@@ -28,7 +28,7 @@ def run(
     out: Annotated[Optional[pathlib.Path], typer.Option(
         "--out", "-o", help="Run directory to create [default: runs/<run.name>].")] = None,
     threads: Annotated[Optional[int], typer.Option(
-        help="CPU threads (overrides run.threads; 0 = all cores).", min=0)] = None,
+        help="CPU threads (overrides run.threads; 0 = automatic: one below the threading layer's crossover, all cores above; see graindyn info).", min=0)] = None,
     backend: Annotated[Optional[str], typer.Option(
         help="Compute backend, cpu or gpu (overrides run.backend; gpu needs the gpu "
              "extra and an NVIDIA GPU, see docs/gpu_notes.md).")] = None,
@@ -105,7 +105,7 @@ def info():
     import numba
     import numpy as np
 
-    from . import _jit
+    from . import _jit, _threads
     from .core.integrators import NAMES
     from .physics import registry
 
@@ -126,8 +126,9 @@ def info():
         if cache.exists() else 0
     lines = [f"graindyn {__version__}",
              f"python {sys.version.split()[0]}, numpy {np.__version__}, numba {numba.__version__}",
-             f"cpu: {numba.config.NUMBA_NUM_THREADS} threads "
-             f"(threading layer {numba.config.THREADING_LAYER})",
+             f"cpu: {numba.config.NUMBA_NUM_THREADS} threads, threading layer "
+             f"{_threads.layer()}" + (f" ({_threads.NOTICE})" if _threads.NOTICE else "")
+             + f"; run.threads = 0: {_threads.rule()}",
              f"gpu: {gpu}",
              f"compile cache: {cache} ({size / 1e6:.1f} MB"
              + (")" if cache.exists() else ", empty: the first run compiles, ~1-2 min)")]

@@ -16,6 +16,8 @@ import time
 import numba
 import numpy as np
 
+from . import _threads as threading_policy
+
 from .analysis.energy import energy_budget
 from .analysis.packing import coordination_number
 from .config import ConfigError, build, dumps, load
@@ -192,19 +194,24 @@ def draw(rundir, protocol, results=None):
         return protocol.figures(rundir, Series(rundir.path / "series.csv").read(), results)
 
 
-def _threads(threads):
-    if threads:
-        if threads > numba.config.NUMBA_NUM_THREADS:
-            raise ConfigError(f"run.threads = {threads}: this machine offers at most "
-                              f"{numba.config.NUMBA_NUM_THREADS}")
-        numba.set_num_threads(threads)
-    return numba.get_num_threads()
+def _threads(requested, grains):
+    """Set numba's thread count for ``grains`` grains (``requested``, or automatic when
+    0 or None: _threads.use); returns (threads, the sentence that says why)."""
+    try:
+        return threading_policy.use(requested or 0, grains)
+    except ValueError as err:
+        raise ConfigError(str(err)) from None
+
+
+def _threading_line(threads, why):
+    notice = f"; {threading_policy.NOTICE}" if threading_policy.NOTICE else ""
+    return f"{threads} threads ({why}), threading layer {threading_policy.layer()}{notice}"
 
 
 def execute(config: Config, out, show_progress=True, echo=print):
     """Start the run of ``config`` in the new run directory ``out``; returns its results."""
     report = check(config)
-    threads = _threads(config.run.threads)
+    threads, why = _threads(config.run.threads, config.grains.count)
     protocol = PROTOCOLS[config.protocol.kind](config)
     rng = np.random.default_rng(config.run.seed)
     sim = protocol.create(rng)
@@ -212,13 +219,14 @@ def execute(config: Config, out, show_progress=True, echo=print):
     resolved.integrator.dt = sim.dt
     resolved.integrator.skin = float(sim.clock[loop.SKIN])
     rundir = RunDirectory.create(out, dumps(resolved), {
-        "seed": config.run.seed, "threads": threads, "backend": config.run.backend,
+        "seed": config.run.seed, "threads": threads, "threads_chosen": why,
+        "threading_layer": threading_policy.layer(), "backend": config.run.backend,
         "grains": sim.state.n})
     rundir.log(f"start: {sim.state.n} grains, dt = {sim.dt:.4g} s "
                f"({sim.dt / report['critical_time_s']:.3f} of the {report['criterion']}), "
-               f"{threads} threads")
+               + _threading_line(threads, why))
     echo(f"run directory {rundir.path}: {sim.state.n} grains, dt = {sim.dt:.4g} s, "
-         f"{threads} threads")
+         + _threading_line(threads, why))
     try:
         return _Driver(rundir, protocol, sim, rng, {"phase": 0, "states": {}}, [],
                        show_progress).drive()
@@ -234,7 +242,9 @@ def resume(out, show_progress=True, echo=print, threads=None, backend=None):
     if backend is not None and backend != config.run.backend:
         config.run.backend = backend
         check(config)
-    threads = _threads(threads or rundir.meta().get("threads"))
+    started = rundir.meta()
+    threads, why = _threads(threads or started.get("threads"),
+                            started.get("grains", config.grains.count))
     arrays, meta, step, t = checkpoint.latest(rundir.checkpoints, warn=echo)
     protocol = PROTOCOLS[config.protocol.kind](config)
     materials = arrays["grains/materials"]
@@ -252,9 +262,10 @@ def resume(out, show_progress=True, echo=print, threads=None, backend=None):
     Series(rundir.path / "series.csv").truncate(step)
     vtk = VtkSeries(rundir.vtk, config.output.vtk_contacts, meta["vtk"])
     vtk.truncate(step)
-    rundir.log(f"resume from step {step}, t = {t:.6g} s, {threads} threads, backend "
+    rundir.log(f"resume from step {step}, t = {t:.6g} s, {_threading_line(threads, why)}, backend "
                f"{config.run.backend}")
-    echo(f"resuming {rundir.path} at step {step} (t = {t:.6g} s), {threads} threads")
+    echo(f"resuming {rundir.path} at step {step} (t = {t:.6g} s), "
+         + _threading_line(threads, why))
     try:
         return _Driver(rundir, protocol, sim, rng, meta["protocol"], vtk.entries,
                        show_progress).drive()

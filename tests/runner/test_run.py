@@ -26,6 +26,9 @@ def test_run_directory_holds_everything(finished):
         assert (finished / name).exists(), name
     meta = json.loads((finished / "meta.json").read_text())
     assert meta["seed"] == 3 and meta["threads"] == 2 and meta["version"]
+    assert meta["threading_layer"] in ("omp", "workqueue")       # never TBB (graindyn._threads)
+    assert meta["threads_chosen"] == "as asked"
+    assert f"threading layer {meta['threading_layer']}" in (finished / "run.log").read_text()
     assert meta["machine"]["cores"] >= 1
     results = json.loads((finished / "results.json").read_text())
     assert results["steps"] > 0 and 0.3 < results["packing_fraction"] < 0.7
