@@ -1,16 +1,20 @@
 """Config validation: every bad config is refused naming the field, with exit code 2 and
 no traceback; the resolved config round-trips."""
 import dataclasses
+import math
+import warnings
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
 from graindyn.cli import app
 from graindyn.config import Config, ConfigError, dumps, load, validate
 from graindyn.config.build import simulation_kwargs
-from graindyn.config.models import MaterialSection
-from graindyn.core.species import Material
+from graindyn.config.models import MaterialSection, material_fields
+from graindyn.core.species import ContactModel, Material
 from graindyn.gpu import unavailable
+from graindyn.physics import registry
 
 runner = CliRunner()
 
@@ -43,6 +47,10 @@ BAD = [
     ("2D gravity with z", _set(("run", "dim"), 2), "run.gravity"),
     ("time step too large", _set(("integrator", "dt"), 1e-4), "integrator.dt"),
     ("law needs a parameter", lambda d: d["materials"][0].pop("restitution"), "restitution"),
+    ("boolean for a number", _set(("materials", 0, "density"), True),
+     "materials.0.density = True"),
+    ("infinite stiffness", _set(("materials", 0, "kn"), math.inf), "materials.0.kn = inf"),
+    ("nan in a vector", _set(("run", "gravity"), [0.0, 0.0, math.nan]), "run.gravity.2 = nan"),
 ]
 if unavailable():     # a machine without a usable GPU refuses the gpu backend
     BAD.append(("gpu backend", _set(("run", "backend"), "gpu"), "run.backend"))
@@ -82,6 +90,42 @@ def test_message_gives_value_and_range(small_config):
     assert "grains.count = 0" in text and "1..1e8" in text
 
 
+@pytest.mark.parametrize("path, value, kind", [
+    (("materials", 0, "density"), True, "a boolean"),
+    (("grains", "count"), "120", "a string"),
+])
+def test_a_number_is_neither_boolean_nor_text(small_config, path, value, kind):
+    """pydantic alone would read true as 1 and "120" as 120."""
+    _set(path, value)(small_config)
+    with pytest.raises(ConfigError) as err:
+        validate(small_config)
+    where = ".".join(map(str, path))
+    assert f"  {where} = {value!r}: Input should be a number, not {kind}  (" in str(err.value)
+
+
+def test_numbers_are_checked_inside_lists_and_dicts(small_config):
+    small_config["contact"]["overrides"] = [{"materials": ["quartz", "steel"],
+                                             "values": {"kn": math.inf}}]
+    small_config["walls"]["periodic"] = [[False, 0.0, 5e-3]]
+    small_config["walls"]["container"]["hi"][2] = "30e-3"
+    with pytest.raises(ConfigError) as err:
+        validate(small_config)
+    text = str(err.value)
+    assert "contact.overrides.0.values.kn = inf: Input should be a finite number" in text
+    assert "walls.periodic.0.0 = False: Input should be a number, not a boolean" in text
+    assert "walls.container.hi.2 = '30e-3': Input should be a number, not a string" in text
+
+
+def test_a_discriminated_section_is_named_by_its_field(small_config):
+    """The kind picks the section (box, oedometer): the message names the field alone and
+    gives that field's range."""
+    small_config["protocol"] = {"kind": "oedometer", "p0": 0.0}
+    with pytest.raises(ConfigError) as err:
+        validate(small_config)
+    assert "  protocol.p0 = 0.0: Input should be greater than 0  (first vertical stress " \
+        "on the piston [Pa]; > 0)" in str(err.value)
+
+
 def test_resolved_config_round_trips(small_config, tmp_path):
     config = validate(small_config)
     text = dumps(config)
@@ -103,6 +147,59 @@ def test_python_api_takes_the_same_models(small_config):
     config = Config.model_validate(small_config)
     with pytest.raises(ValueError):
         config.grains.count = -1  # assignments are validated too
+    with pytest.raises(ValueError):
+        config.run.seed = True
+    with pytest.raises(ValueError):
+        config.materials[0].kn = math.inf
+
+
+HERTZ = "normal hertz, damping tsuji, tangential mindlin, rolling none, twisting none"
+HOOKE = "normal hooke, damping linear, tangential cundall_strack, rolling none, twisting none"
+FRICTIONLESS = "normal hertz, damping none, tangential none, rolling none, twisting none"
+
+
+@pytest.mark.parametrize("contact, quartz, unread", [
+    ({}, {"rolling_stiffness": 10.0}, [("quartz", "rolling_stiffness", HERTZ)]),
+    ({"normal": "hooke", "damping": "linear", "tangential": "cundall_strack"},
+     {"kn": 1e4, "kt": 3e3, "youngs_modulus": 5e9, "poisson_ratio": 0.2},
+     [("quartz", "youngs_modulus, poisson_ratio", HOOKE),
+      ("steel", "youngs_modulus", HOOKE)]),
+    ({"damping": "none", "tangential": "none"}, {},
+     [("quartz", "restitution, tangential_damping", FRICTIONLESS),
+      ("steel", "restitution", FRICTIONLESS)]),
+])
+def test_a_material_field_no_law_reads_is_warned_of(small_config, contact, quartz, unread):
+    small_config["contact"].update(contact)
+    small_config["materials"][0].update(quartz)
+    with pytest.warns(UserWarning) as caught:
+        validate(small_config)
+    assert [str(w.message) for w in caught] == [
+        f"material {name!r}: {fields} set but not read by the contact laws ({laws})"
+        for name, fields, laws in unread]
+
+
+def test_fields_the_laws_read_and_defaults_are_not_warned_of(small_config):
+    """Nor a field set to its default value, as a resolved config writes every field."""
+    small_config["materials"][0]["friction_static"] = 0.5    # the default; mindlin: unread
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        config = validate(small_config)
+        validate(config.model_dump())
+
+
+def test_material_fields_follow_the_pair_table():
+    """material_fields names, for each pair-table column, exactly the material fields
+    core.species computes it from: a field changed alone changes just those columns
+    (the two models fill every column between them)."""
+    models = [ContactModel("hertz", "tsuji"), ContactModel("hooke", "linear")]
+    base = Material(**{f.name: 0.25 for f in dataclasses.fields(Material) if f.name != "name"})
+    for field in MaterialSection.model_fields.keys() - {"name"}:
+        changed = Material(**{**dataclasses.asdict(base), field: 0.125})
+        columns = set()
+        for model in models:
+            diff = model.pair_table([changed])[0, 0] != model.pair_table([base])[0, 0]
+            columns |= {registry.COLUMNS[k].name for k in np.flatnonzero(diff)}
+        assert columns == {c for c in registry.COL if field in material_fields([c])}, field
 
 
 def test_integrator_section_reaches_the_simulation(small_config):

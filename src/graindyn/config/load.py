@@ -14,33 +14,38 @@ class ConfigError(ValueError):
     """A config that cannot run: the message names each field path, value and range."""
 
 
-def _model_in(annotation):
-    """The pydantic model class inside an annotation (X, list[X], X | None), if any."""
+def _models_in(annotation):
+    """The pydantic model classes inside an annotation (X, list[X], X | Y | None)."""
     if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-        return annotation
-    for arg in typing.get_args(annotation):
-        found = _model_in(arg)
-        if found is not None:
-            return found
-    return None
+        return [annotation]
+    return [m for arg in typing.get_args(annotation) for m in _models_in(arg)]
 
 
-def _describe(loc):
-    """Description (unit and range) of the field at ``loc`` in Config, or ''."""
-    cls, info = Config, None
+def _locate(loc):
+    """(dotted path, description with unit and range, or '') of the field at ``loc`` in
+    Config.  The tag pydantic puts in the location of a discriminated union (the kind:
+    box, oedometer) picks the section and is left out of the path."""
+    models, info, path = [Config], None, []
     for part in loc:
-        if isinstance(part, int) or cls is None or part not in cls.model_fields:
-            continue
-        info = cls.model_fields[part]
-        cls = _model_in(info.annotation)
-    return info.description if info is not None and info.description else ""
+        owner = next((m for m in models if part in m.model_fields), None)
+        if owner is not None:
+            info = owner.model_fields[part]
+            models = _models_in(info.annotation)
+        elif info is not None and info.discriminator is not None:
+            tagged = [m for m in models
+                      if m.model_fields[info.discriminator].default == part]
+            if tagged:
+                models = tagged
+                continue
+        path.append(str(part))
+    return ".".join(path), info.description if info is not None and info.description else ""
 
 
 def format_errors(error: ValidationError, source="config"):
     """One line per problem: field path = value: what is wrong (unit and allowed range)."""
     lines = [f"{source}: {error.error_count()} problem(s)"]
     for e in error.errors():
-        path = ".".join(str(p) for p in e["loc"] if p not in ("box", "cylinder"))
+        path, doc = _locate(e["loc"])
         msg = e["msg"].removeprefix("Value error, ")
         if e["type"] == "missing":
             text = f"{path}: missing"
@@ -50,7 +55,6 @@ def format_errors(error: ValidationError, source="config"):
             text = f"{path}: {msg}" if path else msg
         else:
             text = f"{path} = {e['input']!r}: {msg}"
-        doc = _describe(e["loc"])
         lines.append(f"  {text}" + (f"  ({doc})" if doc and e["type"] != "value_error"
                                     else ""))
     return "\n".join(lines)

@@ -1,13 +1,18 @@
 """The run configuration: one pydantic model per TOML section (SI units throughout).
 
 Every field states its unit and allowed range in its description and enforces the range
-with bounds; unknown keys are rejected; cross-field rules are checked in the
+with bounds; unknown keys are rejected; every number is a finite ``Float`` or ``Int``
+(never a boolean or a string); cross-field rules are checked in the
 ``model_validator``s.  A script builds the same ``Config`` from a dict, so a script and
 a TOML file describe the same run.
 """
-from typing import Literal
+import warnings
+from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+import numpy as np
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, field_validator, \
+    model_validator
+from pydantic_core import PydanticCustomError
 
 from ..core import integrators
 from ..physics import registry
@@ -17,10 +22,27 @@ from ..physics import registry
 RSA_JAMMING = {2: 0.547, 3: 0.3841}
 
 
-class Section(BaseModel):
-    """A config section: unknown keys are errors, assignments are validated."""
+def _number(value):
+    """``value`` unchanged unless it is a boolean or a string, which pydantic would read
+    as a number (true as 1, "2650" as 2650.0) where the config means a number."""
+    if isinstance(value, (bool, np.bool_, str)):
+        raise PydanticCustomError("number_type", "Input should be a number, not {kind}",
+                                  {"kind": "a string" if isinstance(value, str)
+                                   else "a boolean"})
+    return value
 
-    model_config = ConfigDict(extra="forbid", validate_assignment=True)
+
+# the numbers of every section, also inside tuples, lists and dicts; finite by
+# Section's allow_inf_nan=False
+Float = Annotated[float, BeforeValidator(_number)]
+Int = Annotated[int, BeforeValidator(_number)]
+
+
+class Section(BaseModel):
+    """A config section: unknown keys are errors, assignments are validated, and numbers
+    are finite: no field means inf or nan (a field that may be absent is None)."""
+
+    model_config = ConfigDict(extra="forbid", validate_assignment=True, allow_inf_nan=False)
 
 
 def _f(default=..., doc="", **bounds):
@@ -30,12 +52,12 @@ def _f(default=..., doc="", **bounds):
 
 class RunSection(Section):
     name: str = _f("run", "name of the run (used in file names and figure titles)")
-    seed: int = _f(1, "random seed [-] of everything random (insertion, velocities); >= 0",
+    seed: Int = _f(1, "random seed [-] of everything random (insertion, velocities); >= 0",
                    ge=0)
     dim: Literal[2, 3] = _f(3, "dimension: 3 (spheres) or 2 (disks in the x-y plane)")
     backend: Literal["cpu", "gpu"] = _f("cpu", "compute backend: cpu or gpu")
-    threads: int = _f(0, "CPU threads [-], 0 = all cores; 0..1024", ge=0, le=1024)
-    gravity: tuple[float, float, float] = _f(
+    threads: Int = _f(0, "CPU threads [-], 0 = automatic (one thread for a small system, all cores for a large one: graindyn info); 0..1024", ge=0, le=1024)
+    gravity: tuple[Float, Float, Float] = _f(
         (0.0, 0.0, -9.81), "gravity [m/s^2]; in 2D the z component must be 0")
 
 
@@ -43,10 +65,12 @@ class DiameterSection(Section):
     distribution: Literal["uniform", "normal", "lognormal"] = _f(
         "uniform", "diameter distribution: uniform in [min, max] (Oquendo, Perez), normal "
         "or lognormal (mean, std of the diameter)")
-    min: float | None = _f(None, "smallest diameter [m] (uniform); (0, 1]", gt=0, le=1)
-    max: float | None = _f(None, "largest diameter [m] (uniform); (0, 1]", gt=0, le=1)
-    mean: float | None = _f(None, "mean diameter [m] (normal, lognormal); (0, 1]", gt=0, le=1)
-    std: float | None = _f(None, "standard deviation of the diameter [m]; [0, 1]", ge=0, le=1)
+    min: Float | None = _f(None, "smallest diameter [m] (uniform); (0, 1]", gt=0, le=1)
+    max: Float | None = _f(None, "largest diameter [m] (uniform); (0, 1]", gt=0, le=1)
+    mean: Float | None = _f(None, "mean diameter [m] (normal, lognormal); (0, 1]", gt=0,
+                            le=1)
+    std: Float | None = _f(None, "standard deviation of the diameter [m]; [0, 1]", ge=0,
+                           le=1)
 
     @model_validator(mode="after")
     def _consistent(self):
@@ -73,7 +97,7 @@ class DiameterSection(Section):
 
 
 class GrainsSection(Section):
-    count: int = _f(..., "number of grains [-]; 1..1e8", ge=1, le=100_000_000)
+    count: Int = _f(..., "number of grains [-]; 1..1e8", ge=1, le=100_000_000)
     diameter: DiameterSection = _f(..., "grain diameters")
     material: str = _f(..., "name of the grain material (one of [[materials]])")
 
@@ -82,45 +106,57 @@ class MaterialSection(Section):
     """Mirrors core.species.Material field by field (a test keeps the two in step)."""
 
     name: str = _f(..., "material name, referenced by grains and walls")
-    density: float = _f(2650.0, "density [kg/m^3] (2D: areal [kg/m^2]); (0, 1e5]", gt=0,
+    density: Float = _f(2650.0, "density [kg/m^3] (2D: areal [kg/m^2]); (0, 1e5]", gt=0,
                         le=1e5)
-    youngs_modulus: float = _f(1e8, "Young's modulus E [Pa]; (0, 1e13]", gt=0, le=1e13)
-    poisson_ratio: float = _f(0.3, "Poisson ratio nu [-]; (-1, 0.5)", gt=-1, lt=0.5)
-    restitution: float | None = _f(None, "normal restitution coefficient [-] setting the "
+    youngs_modulus: Float = _f(1e8, "Young's modulus E [Pa]; (0, 1e13]", gt=0, le=1e13)
+    poisson_ratio: Float = _f(0.3, "Poisson ratio nu [-]; (-1, 0.5)", gt=-1, lt=0.5)
+    restitution: Float | None = _f(None, "normal restitution coefficient [-] setting the "
                                    "damping of the chosen law; (0, 1]", gt=0, le=1)
-    damping_constant: float = _f(0.0, "linear dashpot constant Gamma [kg/s]; >= 0", ge=0)
-    gamma_n: float = _f(0.0, "viscoelastic Hertz damping gamma_n [1/(s m^0.5)] (Oquendo "
+    damping_constant: Float = _f(0.0, "linear dashpot constant Gamma [kg/s]; >= 0", ge=0)
+    gamma_n: Float = _f(0.0, "viscoelastic Hertz damping gamma_n [1/(s m^0.5)] (Oquendo "
                         "Eq. 1); >= 0", ge=0)
-    kn: float = _f(0.0, "linear normal stiffness [N/m]; >= 0", ge=0)
-    kt: float = _f(0.0, "linear tangential stiffness [N/m]; >= 0", ge=0)
-    friction_sliding: float = _f(0.5, "sliding friction coefficient mu_k [-]; [0, 10]",
+    kn: Float = _f(0.0, "linear normal stiffness [N/m]; >= 0", ge=0)
+    kt: Float = _f(0.0, "linear tangential stiffness [N/m]; >= 0", ge=0)
+    friction_sliding: Float = _f(0.5, "sliding friction coefficient mu_k [-]; [0, 10]",
                                  ge=0, le=10)
-    friction_static: float = _f(0.5, "static friction coefficient mu_s [-]; [0, 10]",
+    friction_static: Float = _f(0.5, "static friction coefficient mu_s [-]; [0, 10]",
                                 ge=0, le=10)
-    friction_rolling: float = _f(0.0, "rolling friction coefficient [-]; [0, 10]", ge=0,
+    friction_rolling: Float = _f(0.0, "rolling friction coefficient [-]; [0, 10]", ge=0,
                                  le=10)
-    tangential_damping: float = _f(0.0, "tangential/normal dashpot ratio [-]; [0, 1e6]",
+    tangential_damping: Float = _f(0.0, "tangential/normal dashpot ratio [-]; [0, 1e6]",
                                    ge=0, le=1e6)
-    slip_threshold: float = _f(1e-5, "Oquendo's contact-point speed below which grains "
+    slip_threshold: Float = _f(1e-5, "Oquendo's contact-point speed below which grains "
                                "stick or roll [m/s] (Eq. 4, 7); >= 0", ge=0)
-    gamma_nt: float = _f(0.0, "Oquendo's twisting damping gamma_nt [1/s] (Eq. 2); >= 0",
+    gamma_nt: Float = _f(0.0, "Oquendo's twisting damping gamma_nt [1/s] (Eq. 2); >= 0",
                          ge=0)
-    alpha_n: float = _f(0.0, "Karrech's normal dissipation coefficient alpha [-] (Eq. 7); "
+    alpha_n: Float = _f(0.0, "Karrech's normal dissipation coefficient alpha [-] (Eq. 7); "
                         ">= 0", ge=0)
-    alpha_t: float = _f(0.0, "Karrech's tangential dissipation coefficient alpha [-] "
+    alpha_t: Float = _f(0.0, "Karrech's tangential dissipation coefficient alpha [-] "
                         "(Eq. 7); >= 0", ge=0)
-    rolling_stiffness: float = _f(0.0, "EPSD rolling spring [N/m] (torque through R*^2); "
+    rolling_stiffness: Float = _f(0.0, "EPSD rolling spring [N/m] (torque through R*^2); "
                                   ">= 0", ge=0)
-    rolling_damping: float = _f(0.0, "EPSD rolling dashpot [kg/s]; >= 0", ge=0)
-    friction_twisting: float = _f(0.0, "twisting friction coefficient [-] (limit "
+    rolling_damping: Float = _f(0.0, "EPSD rolling dashpot [kg/s]; >= 0", ge=0)
+    friction_twisting: Float = _f(0.0, "twisting friction coefficient [-] (limit "
                                   "mu_tw a |f_n|); [0, 10]", ge=0, le=10)
-    twisting_stiffness: float = _f(0.0, "EPSD twisting spring [N m/rad]; >= 0", ge=0)
-    twisting_damping: float = _f(0.0, "EPSD twisting dashpot [N m s]; >= 0", ge=0)
+    twisting_stiffness: Float = _f(0.0, "EPSD twisting spring [N m/rad]; >= 0", ge=0)
+    twisting_damping: Float = _f(0.0, "EPSD twisting dashpot [N m s]; >= 0", ge=0)
+
+
+# pair-table columns that core.species computes from material fields of other names;
+# every other column is mixed from the material field of its own name
+_DERIVED = {"youngs_eff": ("youngs_modulus", "poisson_ratio"),
+            "shear_eff": ("youngs_modulus", "poisson_ratio"),
+            "damping_ratio": ("restitution",), "tsuji_alpha": ("restitution",)}
+
+
+def material_fields(columns):
+    """The material fields that the pair-table ``columns`` are computed from."""
+    return {f for c in columns for f in _DERIVED.get(c, (c,))}
 
 
 class PairOverride(Section):
     materials: tuple[str, str] = _f(..., "the two material names of the pair")
-    values: dict[str, float] = _f(..., "pair-table columns and their values (SI)")
+    values: dict[str, Float] = _f(..., "pair-table columns and their values (SI)")
 
     @field_validator("values")
     @classmethod
@@ -150,37 +186,37 @@ class ContactSection(Section):
 
 class MotionSection(Section):
     kind: Literal["fixed", "velocity", "sinusoid"] = _f("fixed", "prescribed wall motion")
-    velocity: tuple[float, float, float] = _f((0.0, 0.0, 0.0), "velocity [m/s] (velocity)")
-    direction: tuple[float, float, float] = _f((0.0, 0.0, 1.0),
+    velocity: tuple[Float, Float, Float] = _f((0.0, 0.0, 0.0), "velocity [m/s] (velocity)")
+    direction: tuple[Float, Float, Float] = _f((0.0, 0.0, 1.0),
                                                "direction of a sinusoid [-]")
-    amplitude: float = _f(0.0, "sinusoid amplitude [m]; >= 0", ge=0)
-    frequency: float = _f(1.0, "sinusoid frequency [Hz]; > 0", gt=0)
-    phase: float = _f(0.0, "sinusoid phase [rad]")
-    start: float = _f(0.0, "time the motion starts [s]; >= 0", ge=0)
+    amplitude: Float = _f(0.0, "sinusoid amplitude [m]; >= 0", ge=0)
+    frequency: Float = _f(1.0, "sinusoid frequency [Hz]; > 0", gt=0)
+    phase: Float = _f(0.0, "sinusoid phase [rad]")
+    start: Float = _f(0.0, "time the motion starts [s]; >= 0", ge=0)
 
 
 class PlaneSection(Section):
     name: str = _f(..., "wall name (used in the outputs)")
-    point: tuple[float, float, float] = _f(..., "a point of the plane [m]")
-    normal: tuple[float, float, float] = _f(..., "normal pointing into the grains [-]")
+    point: tuple[Float, Float, Float] = _f(..., "a point of the plane [m]")
+    normal: tuple[Float, Float, Float] = _f(..., "normal pointing into the grains [-]")
     material: str | None = _f(None, "wall material; default: walls.material")
-    area: float | None = _f(None, "area [m^2] (2D: length [m]) for the stress; > 0", gt=0)
+    area: Float | None = _f(None, "area [m^2] (2D: length [m]) for the stress; > 0", gt=0)
     motion: MotionSection = _f(MotionSection(), "prescribed motion")
 
 
 class BoxContainer(Section):
     kind: Literal["box"] = "box"
-    lo: list[float] = _f(..., "lower corner [m] (dim components)")
-    hi: list[float] = _f(..., "upper corner [m] (dim components)")
+    lo: list[Float] = _f(..., "lower corner [m] (dim components)")
+    hi: list[Float] = _f(..., "upper corner [m] (dim components)")
     open_top: bool = _f(True, "leave out the face at hi along the last axis")
 
 
 class CylinderContainer(Section):
     kind: Literal["cylinder"] = "cylinder"
-    radius: float = _f(..., "inner radius [m]; (0, 100]", gt=0, le=100)
-    height: float = _f(..., "height [m] of the cylinder above its bottom; (0, 1000]", gt=0,
+    radius: Float = _f(..., "inner radius [m]; (0, 100]", gt=0, le=100)
+    height: Float = _f(..., "height [m] of the cylinder above its bottom; (0, 1000]", gt=0,
                        le=1000)
-    center: tuple[float, float] = _f((0.0, 0.0), "axis position (x, y) [m]; the axis is z")
+    center: tuple[Float, Float] = _f((0.0, 0.0), "axis position (x, y) [m]; the axis is z")
 
 
 class WallsSection(Section):
@@ -189,20 +225,20 @@ class WallsSection(Section):
         None, "the container: a box or a vertical cylinder with a bottom at z = 0",
         discriminator="kind")
     planes: list[PlaneSection] = _f([], "additional planes")
-    periodic: list[tuple[int, float, float]] = _f(
+    periodic: list[tuple[Int, Float, Float]] = _f(
         [], "periodic directions as (axis 0..2, lo [m], hi [m])")
 
 
 class IntegratorSection(Section):
     name: str = _f("velocity_verlet", "integrator (see graindyn info)")
-    dt: float | None = _f(None, "time step [s]; default: the suggested step; (0, 1]", gt=0,
+    dt: Float | None = _f(None, "time step [s]; default: the suggested step; (0, 1]", gt=0,
                           le=1)
     allow_large_dt: bool = _f(False, "accept a step above the safe fraction of the contact "
                               "time")
-    skin: float | None = _f(None, "neighbour-list skin [m]; default 0.2 mean radius", gt=0)
-    check_interval: int = _f(100, "steps between NaN/overlap/stop checks [-]; 1..1e6",
+    skin: Float | None = _f(None, "neighbour-list skin [m]; default 0.2 mean radius", gt=0)
+    check_interval: Int = _f(100, "steps between NaN/overlap/stop checks [-]; 1..1e6",
                              ge=1, le=1_000_000)
-    overlap_limit: float = _f(0.2, "stop when an overlap exceeds this fraction of the "
+    overlap_limit: Float = _f(0.2, "stop when an overlap exceeds this fraction of the "
                               "smaller radius [-]; (0, 1]", gt=0, le=1)
     orientations: bool = _f(True, "turn the grains' orientations every step; false "
                             "leaves them as they are (CPU only; they act on nothing, and "
@@ -222,17 +258,17 @@ class SettleFields(Section):
     insertion: Literal["random", "lattice"] = _f(
         "random", "random non-overlapping insertion, or a loose lattice with random "
         "velocities (Perez)")
-    packing_fraction: float = _f(0.2, "solid fraction of the insertion region [-] (random "
+    packing_fraction: Float = _f(0.2, "solid fraction of the insertion region [-] (random "
                                  "insertion); (0, RSA jamming: 0.384 in 3D, 0.547 in 2D)",
                                  gt=0, lt=0.547)
-    lattice_gap: float = _f(0.05, "gap between lattice sites [fraction of d_max]; [0, 10]",
+    lattice_gap: Float = _f(0.05, "gap between lattice sites [fraction of d_max]; [0, 10]",
                             ge=0, le=10)
-    lattice_speed: float = _f(0.0, "random initial speed on the lattice [m/s]; >= 0", ge=0)
+    lattice_speed: Float = _f(0.0, "random initial speed on the lattice [m/s]; >= 0", ge=0)
     criterion: Literal["energy_ratio", "max_speed"] = _f(
         "energy_ratio", "equilibrium: E_kin/E_pot <= threshold (Karrech et al.) or the "
         "largest speed below threshold [m/s]")
-    threshold: float = _f(1e-6, "value of the equilibrium criterion; > 0", gt=0)
-    max_time: float = _f(1.0, "longest settling time [s] of simulated time; (0, 1e4]",
+    threshold: Float = _f(1e-6, "value of the equilibrium criterion; > 0", gt=0)
+    max_time: Float = _f(1.0, "longest settling time [s] of simulated time; (0, 1e4]",
                          gt=0, le=1e4)
 
 
@@ -248,20 +284,20 @@ class OedometerProtocol(SettleFields):
     down), relaxing at each level; fit Bauer's law (Oquendo Eq. 19)."""
 
     kind: Literal["oedometer"] = "oedometer"
-    p0: float = _f(12.5e3, "first vertical stress on the piston [Pa]; > 0", gt=0)
-    p_max: float = _f(3.2e6, "largest vertical stress [Pa]; >= p0", gt=0)
-    factor: float = _f(2.0, "stress ratio between levels [-] (2: doubling); (1, 10]", gt=1,
+    p0: Float = _f(12.5e3, "first vertical stress on the piston [Pa]; > 0", gt=0)
+    p_max: Float = _f(3.2e6, "largest vertical stress [Pa]; >= p0", gt=0)
+    factor: Float = _f(2.0, "stress ratio between levels [-] (2: doubling); (1, 10]", gt=1,
                        le=10)
     unload: bool = _f(False, "after p_max, unload by the same factor back to p0")
     piston_material: str | None = _f(None, "piston material; default: walls.material")
-    servo_time: float = _f(1e-3, "servo time constant tau [s]: the piston closes its force "
+    servo_time: Float = _f(1e-3, "servo time constant tau [s]: the piston closes its force "
                            "error no faster than exp(-t/tau); (0, 10]", gt=0, le=10)
-    max_speed: float = _f(0.01, "largest piston speed [m/s]; (0, 10]", gt=0, le=10)
-    force_tolerance: float = _f(0.01, "a level is at rest when |F_piston - F_target| <= "
+    max_speed: Float = _f(0.01, "largest piston speed [m/s]; (0, 10]", gt=0, le=10)
+    force_tolerance: Float = _f(0.01, "a level is at rest when |F_piston - F_target| <= "
                                 "this fraction of F_target ...; (0, 0.5]", gt=0, le=0.5)
-    rest_ratio: float = _f(1e-4, "... and kinetic <= this fraction of the elastic energy of "
+    rest_ratio: Float = _f(1e-4, "... and kinetic <= this fraction of the elastic energy of "
                            "the contacts [-]; > 0", gt=0)
-    level_max_time: float = _f(0.05, "longest relaxation per level [s] of simulated time "
+    level_max_time: Float = _f(0.05, "longest relaxation per level [s] of simulated time "
                                "(the level is then recorded as not at rest); (0, 100]",
                                gt=0, le=100)
 
@@ -273,13 +309,13 @@ class OedometerProtocol(SettleFields):
 
 
 class OutputSection(Section):
-    series_every: float = _f(1e-3, "time-series interval [s] of simulated time; > 0", gt=0)
-    vtk_every: float | None = _f(None, "VTK snapshot interval [s] of simulated time "
+    series_every: Float = _f(1e-3, "time-series interval [s] of simulated time; > 0", gt=0)
+    vtk_every: Float | None = _f(None, "VTK snapshot interval [s] of simulated time "
                                  "(None: first and last state only); > 0", gt=0)
     vtk_contacts: bool = _f(False, "also write the contact network (lines, normal force)")
-    checkpoint_every_steps: int | None = _f(200_000, "checkpoint interval [steps]; >= 1",
+    checkpoint_every_steps: Int | None = _f(200_000, "checkpoint interval [steps]; >= 1",
                                             ge=1)
-    checkpoint_every_seconds: float | None = _f(
+    checkpoint_every_seconds: Float | None = _f(
         600.0, "checkpoint interval [s] of wall-clock time; > 0", gt=0)
     figures: bool = _f(True, "draw the figures (PNG)")
 
@@ -352,6 +388,26 @@ class Config(Section):
             if axis not in range(dim) or not hi > lo:
                 raise ValueError(f"walls.periodic: ({axis}, {lo}, {hi}) needs axis in "
                                  f"0..{dim - 1} and hi > lo [m]")
+        return self
+
+    @model_validator(mode="after")
+    def _unused_material_fields(self):
+        """Warn of material fields the user set that no chosen contact law reads (a
+        Young's modulus under the linear spring, friction with no tangential law): they
+        would be ignored without a word.  A field set to its default is no choice: a
+        resolved config (dumps, a sweep's points) writes every default out."""
+        laws = {mode: getattr(self.contact, mode) for mode in registry.MODES}
+        read = material_fields(c for mode, name in laws.items()
+                               for c in registry.get(mode, name).columns)
+        unread = material_fields(registry.COL) - read
+        chosen = ", ".join(f"{mode} {name}" for mode, name in laws.items())
+        for m in self.materials:
+            fields = [f for f in MaterialSection.model_fields if f in unread
+                      and f in m.model_fields_set
+                      and getattr(m, f) != MaterialSection.model_fields[f].default]
+            if fields:
+                warnings.warn(f"material {m.name!r}: {', '.join(fields)} set but not read "
+                              f"by the contact laws ({chosen})")
         return self
 
     def material_index(self, name):
