@@ -61,3 +61,27 @@ def test_readme_quick_tour_runs(capsys):
     report = scope["report"]
     assert 0.45 < report["packing_fraction"] < 0.7
     assert 3.0 < report["coordination_number"] < 7.0
+
+
+def test_cache_command_shows_and_clears_old_folders(tmp_path):
+    """``graindyn cache`` lists the folders under GRAINDYN_CACHE_DIR; ``cache clear``
+    removes those of other sources and keeps the one in use (``--all``: that one too)."""
+    import os
+
+    old = tmp_path / "0123456789abcdef-omp"
+    old.mkdir()
+    (old / "kernel.nbc").write_bytes(b"x" * 2_000_000)
+    env = {**os.environ, "GRAINDYN_CACHE_DIR": str(tmp_path)}
+
+    def cli(*args):
+        return subprocess.run([sys.executable, "-m", "graindyn", "cache", *args], env=env,
+                              capture_output=True, text=True, check=True).stdout
+
+    current = cli().splitlines()
+    assert any(old.name in line and "2.0 MB" in line for line in current)
+    in_use = next(line.split()[0] for line in current if "(in use" in line)
+    (tmp_path / in_use).mkdir(exist_ok=True)
+    assert "removed 1 folder(s), 2.0 MB" in cli("clear")
+    assert not old.exists() and (tmp_path / in_use).exists()
+    cli("clear", "--all")
+    assert not any(tmp_path.iterdir())

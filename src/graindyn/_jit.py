@@ -61,6 +61,32 @@ CACHE_ROOT = pathlib.Path(os.environ.get("GRAINDYN_CACHE_DIR",
 CACHE_DIR = CACHE_ROOT / f"{source_digest()}-{_threads.LAYER}"
 numba.config.CACHE_DIR = str(CACHE_DIR)
 
+
+
+def cache_folders():
+    """The compile-cache folders under CACHE_ROOT: [(path, bytes, current)], the one in
+    use first.  Every edit of the engine source or change of threading layer starts a
+    new folder and leaves the old ones behind."""
+    if not CACHE_ROOT.is_dir():
+        return []
+    folders = [(path, sum(f.stat().st_size for f in path.rglob("*") if f.is_file()),
+                path == CACHE_DIR) for path in CACHE_ROOT.iterdir() if path.is_dir()]
+    return sorted(folders, key=lambda row: (not row[2], row[0].name))
+
+
+def clear_cache(everything=False):
+    """Remove the compile-cache folders other than the one in use (all of them with
+    ``everything``: the next run compiles again); returns [(path, bytes)] removed."""
+    import shutil
+
+    removed = []
+    for path, size, current in cache_folders():
+        if everything or not current:
+            shutil.rmtree(path, ignore_errors=True)
+            removed.append((path, size))
+    return removed
+
+
 scalar = numba.njit(cache=True, error_model="numpy", inline="always")
 inlined = numba.njit(cache=True, error_model="numpy", forceinline=True)
 kernel = numba.njit(cache=True, error_model="numpy")

@@ -213,6 +213,40 @@ def sweep_command(
         raise typer.Exit(report.exit_code)
 
 
+cache = typer.Typer(invoke_without_command=True,
+                    help="The compile cache: where it is and how big (clear: remove old "
+                    "folders).")
+app.add_typer(cache, name="cache")
+
+
+@cache.callback()
+def cache_show(context: typer.Context):
+    """Each compile-cache folder, its size, and which one this source tree uses."""
+    if context.invoked_subcommand is not None:
+        return
+    from . import _jit
+
+    folders = _jit.cache_folders()
+    typer.echo(f"compile cache root: {_jit.CACHE_ROOT} (GRAINDYN_CACHE_DIR moves it)")
+    for path, size, current in folders:
+        typer.echo(f"  {path.name}  {size / 1e6:8.1f} MB" + ("  (in use)" if current else ""))
+    if not any(current for *_, current in folders):
+        typer.echo(f"  {_jit.CACHE_DIR.name}  (in use, empty: the next run compiles)")
+    typer.echo(f"total {sum(size for _, size, _ in folders) / 1e6:.1f} MB")
+
+
+@cache.command("clear")
+def cache_clear(everything: Annotated[bool, typer.Option(
+        "--all", help="Also the folder in use (the next run compiles again, ~1-2 min).")]
+        = False):
+    """Remove the compile-cache folders that this source tree no longer uses."""
+    from . import _jit
+
+    removed = _jit.clear_cache(everything)
+    typer.echo(f"removed {len(removed)} folder(s), "
+               f"{sum(size for _, size in removed) / 1e6:.1f} MB")
+
+
 study = typer.Typer(no_args_is_help=True, help="Studies that reproduce the documents' "
                     "comparisons.")
 app.add_typer(study, name="study")

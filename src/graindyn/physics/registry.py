@@ -8,9 +8,9 @@ in the order of ``HISTORY_ORDER``; ``history_layout`` gives each mode its offset
 columns of ``COLUMNS``; kernels index it with the integer constants of ``COL``.
 
 To add a law: write its scalar function in physics/<mode>.py, add a row below, add a
-branch in physics/contact.py, and an analytic test.  (Numba caches a kernel against
-its own source file: after changing COLUMNS, clear the cache with
-``python -m graindyn.cache clear``.)
+branch in physics/contact.py, and an analytic test.  The compile cache needs no
+clearing: its folder is named by a hash of the engine source (_jit.py), and
+``graindyn cache clear`` removes the folders left by earlier versions.
 """
 from dataclasses import dataclass
 
