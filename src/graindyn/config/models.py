@@ -56,7 +56,8 @@ class RunSection(Section):
                    ge=0)
     dim: Literal[2, 3] = _f(3, "dimension: 3 (spheres) or 2 (disks in the x-y plane)")
     backend: Literal["cpu", "gpu"] = _f("cpu", "compute backend: cpu or gpu")
-    threads: Int = _f(0, "CPU threads [-], 0 = automatic (one thread for a small system, all cores for a large one: graindyn info); 0..1024", ge=0, le=1024)
+    threads: Int = _f(0, "CPU threads [-], 0 = automatic (one thread for a small system, "
+                      "every core for a large one: graindyn info); 0..1024", ge=0, le=1024)
     gravity: tuple[Float, Float, Float] = _f(
         (0.0, 0.0, -9.81), "gravity [m/s^2]; in 2D the z component must be 0")
 
