@@ -146,7 +146,9 @@ def value_text(value):
     elif isinstance(value, int):
         text = str(value)
     elif isinstance(value, float):
-        if value == 0 or 1e-4 <= abs(value) < 1e6:
+        if not np.isfinite(value):        # refused when the point's config is checked
+            text = str(value)
+        elif value == 0 or 1e-4 <= abs(value) < 1e6:
             text = np.format_float_positional(value, unique=True, trim="-")
         else:
             mantissa, exponent = np.format_float_scientific(

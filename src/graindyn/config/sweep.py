@@ -16,21 +16,17 @@ values mean is checked by building each point's ``Config`` (``graindyn.sweep``).
 import pathlib
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, \
-    model_validator
+from pydantic import Field, ValidationError, field_validator, model_validator
 
 from .load import ConfigError, read_toml
+from .models import Float, Int, Section
 
 # config fields a sweep sets itself: varying them would be silently overridden
 RESERVED = {"run.seed": "the sweep sets it per point: list the seeds in 'seeds'",
             "run.threads": "the sweep sets it to --threads-per-worker"}
 
 
-class _Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", validate_assignment=True)
-
-
-class VarySection(_Section):
+class VarySection(Section):
     """One parameter varied around the base config, the others kept at their base values."""
 
     parameter: str = Field(..., min_length=1, pattern=r"^[A-Za-z0-9_]+(\.[A-Za-z0-9_]+)*$",
@@ -40,7 +36,7 @@ class VarySection(_Section):
                               "in the units of the config field (SI)")
     label: str | None = Field(None, min_length=1, description="display name of the "
                               "parameter in tables and figures, e.g. 'V [GPa]'")
-    display: list[float | int | str] | None = Field(
+    display: list[Int | Float | str] | None = Field(
         None, description="display values in tables and figures, one per value")
 
     @field_validator("values")
@@ -64,12 +60,12 @@ class VarySection(_Section):
         return self
 
 
-class SweepFile(_Section):
+class SweepFile(Section):
     """A whole sweep: the base config, the seeds and the parameters varied."""
 
     base: str = Field(..., min_length=1, description="path of the base (reference) run "
                       "config, relative to the sweep file")
-    seeds: list[int] | None = Field(None, min_length=1, description="random seeds [-] of "
+    seeds: list[Int] | None = Field(None, min_length=1, description="random seeds [-] of "
                                     "every point (each >= 0); default: the base run.seed")
     vary: list[VarySection] = Field([], description="parameters varied one at a time")
 
