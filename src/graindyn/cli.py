@@ -93,8 +93,8 @@ def validate(config: Annotated[pathlib.Path, typer.Argument(help="TOML config to
                f"+ rolling {c.rolling} + twisting {c.twisting}\n  {report['criterion']} "
                f"{report['critical_time_s']:.4g} s, suggested dt "
                f"{report['suggested_dt_s']:.4g} s"
-               + (f", dt {cfg.integrator.dt:.4g} s = {report['fraction']:.3f} of it"
-                  if cfg.integrator.dt else ""))
+               + (f", dt {cfg.engine.dt:.4g} s = {report['fraction']:.3f} of it"
+                  if cfg.engine.dt else ""))
 
 
 @app.command()

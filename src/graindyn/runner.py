@@ -216,8 +216,8 @@ def execute(config: Config, out, show_progress=True, echo=print):
     rng = np.random.default_rng(config.run.seed)
     sim = protocol.create(rng)
     resolved = config.model_copy(deep=True)
-    resolved.integrator.dt = sim.dt
-    resolved.integrator.skin = float(sim.clock[loop.SKIN])
+    resolved.engine.dt = sim.dt
+    resolved.engine.skin = float(sim.clock[loop.SKIN])
     rundir = RunDirectory.create(out, dumps(resolved), {
         "seed": config.run.seed, "threads": threads, "threads_chosen": why,
         "threading_layer": threading_policy.layer(), "backend": config.run.backend,

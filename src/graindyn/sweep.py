@@ -351,8 +351,8 @@ def _stored_differences(point, stored):
     a, b = point.config.model_dump(mode="json"), stored.model_dump(mode="json")
     a["run"].pop("threads"), b["run"].pop("threads")
     for name in ("dt", "skin"):
-        if a["integrator"][name] is None:
-            a["integrator"].pop(name), b["integrator"].pop(name)
+        if a["engine"][name] is None:
+            a["engine"].pop(name), b["engine"].pop(name)
     out = []
 
     def walk(x, y, where):

@@ -35,7 +35,7 @@ SMALL = {
     "contact": {"normal": "hertz", "damping": "viscoelastic", "tangential": "mindlin"},
     "walls": {"material": "sand",
               "container": {"kind": "cylinder", "radius": 2.5e-3, "height": 12e-3}},
-    "integrator": {"name": "optimized_velocity_verlet"},
+    "engine": {"integrator": "optimized_velocity_verlet"},
     "protocol": {"kind": "oedometer", "packing_fraction": 0.25, "threshold": 1e-5,
                  "max_time": 0.3, "p0": 2e3, "p_max": 8e3, "unload": True,
                  "servo_time": 2e-3, "max_speed": 0.05, "level_max_time": 0.1},

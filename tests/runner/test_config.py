@@ -1,5 +1,6 @@
 """Config validation: every bad config is refused naming the field, with exit code 2 and
 no traceback; the resolved config round-trips."""
+import copy
 import dataclasses
 import math
 import warnings
@@ -42,10 +43,10 @@ BAD = [
     ("packing above RSA jamming", _set(("protocol", "packing_fraction"), 0.45),
      "protocol.packing_fraction"),
     ("unknown law", _set(("contact", "normal"), "hook"), "hooke"),
-    ("unknown integrator", _set(("integrator", "name"), "rk4"), "integrator.name"),
+    ("unknown integrator", _set(("engine", "integrator"), "rk4"), "engine.integrator"),
     ("box of wrong dimension", _set(("walls", "container", "lo"), [0, 0]), "walls.container"),
     ("2D gravity with z", _set(("run", "dim"), 2), "run.gravity"),
-    ("time step too large", _set(("integrator", "dt"), 1e-4), "integrator.dt"),
+    ("time step too large", _set(("engine", "dt"), 1e-4), "engine.dt"),
     ("law needs a parameter", lambda d: d["materials"][0].pop("restitution"), "restitution"),
     ("boolean for a number", _set(("materials", 0, "density"), True),
      "materials.0.density = True"),
@@ -202,9 +203,10 @@ def test_material_fields_follow_the_pair_table():
         assert columns == {c for c in registry.COL if field in material_fields([c])}, field
 
 
-def test_integrator_section_reaches_the_simulation(small_config):
-    """Every integrator option is passed on: orientations too (false: not turned)."""
-    small_config.setdefault("integrator", {})["orientations"] = False
+def test_engine_section_reaches_the_simulation(small_config):
+    """Every option of the soft engine is passed on: orientations too (false: not
+    turned)."""
+    small_config.setdefault("engine", {})["orientations"] = False
     kwargs = simulation_kwargs(Config.model_validate(small_config))
     assert kwargs["orientations"] is False
     assert kwargs["check_interval"] == 100
@@ -229,3 +231,24 @@ def test_deposition_puts_randomly_inserted_grains_in_cell_order(small_config):
     assert not np.all(np.diff(radii) <= 0.0)          # no longer largest first
     np.testing.assert_array_equal(cell_order(positions, 2.2 * radii.max()),
                                   np.arange(radii.size))
+
+
+def test_an_older_integrator_section_loads_as_the_engine_section(small_config):
+    """[integrator] (name = ...) of an older config is read as [engine] (integrator =
+    ...), with a warning that says what to write; both at once, or an engine kind this
+    version lacks, are refused with one line naming the section."""
+    old = copy.deepcopy(small_config)
+    old["integrator"] = {"name": "leap_frog", "dt": 1e-6}
+    with pytest.warns(DeprecationWarning, match=r"\[integrator\] is now \[engine\]: write "
+                      r"\[engine\] with integrator = 'leap_frog', dt = 1e-06 \(name is now "
+                      r"integrator\)"):
+        config = validate(old)
+    assert (config.engine.kind, config.engine.integrator, config.engine.dt) == \
+        ("soft", "leap_frog", 1e-6)
+    both = {**old, "engine": {"integrator": "leap_frog"}}
+    with pytest.raises(ConfigError, match="both given"):
+        validate(both)
+    future = {**small_config, "engine": {"kind": "event_driven"}}
+    with pytest.raises(ConfigError, match="engine.kind = 'event_driven' is not an engine "
+                       "of this version; engines: soft"):
+        validate(future)

@@ -95,7 +95,7 @@ _EXTENDED["walls"]["planes"] = [{"name": "lid", "point": [0.0, 0.0, 0.05],
                                  "normal": [0.0, 0.0, -1.0], "area": 1e-4,
                                  "motion": {"kind": "sinusoid", "amplitude": 1e-3}}]
 _EXTENDED["walls"]["periodic"] = [[0, 0.0, 10e-3]]
-_EXTENDED["integrator"] = {"skin": 1e-4}
+_EXTENDED["engine"] = {"skin": 1e-4}
 _SOURCES = {**{name: data for name, data in FILES.items() if name not in SWEEPS},
             "deposition_3d.toml (extended)": _EXTENDED}
 

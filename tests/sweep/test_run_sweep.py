@@ -109,7 +109,7 @@ def interrupted(tmp_path_factory):
     folder = tmp_path_factory.mktemp("interrupted")
     path = write_sweep(folder, {"seeds": [1], "vary": [
         {"parameter": "protocol.max_time", "values": [1.0]},
-        {"parameter": "integrator.overlap_limit", "values": [1e-6]}]})
+        {"parameter": "engine.overlap_limit", "values": [1e-6]}]})
     out = folder / "out"
     reference, long = out / "reference" / "seed-1", out / "max_time=1" / "seed-1"
     proc = cli("sweep", path, "--out", out, "--workers", "1")

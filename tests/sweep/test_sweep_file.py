@@ -62,8 +62,8 @@ BAD = [
      {"vary": [{"parameter": "contact.tangential", "values": ["mindlin", "stick"]}]},
      ["contact.tangential = 'stick'"]),
     ("time step too large for a value",
-     {"vary": [{"parameter": "integrator.dt", "values": [1e-7, 1e-3]}]},
-     ["integrator.dt = 0.001", "integrator.dt"]),
+     {"vary": [{"parameter": "engine.dt", "values": [1e-7, 1e-3]}]},
+     ["engine.dt = 0.001", "engine.dt"]),
 ]
 
 
@@ -109,7 +109,7 @@ def test_points_configs_and_names(tmp_path):
         {"parameter": "materials.sand.youngs_modulus", "values": [1.125e8, 1.8e10],
          "label": "V [GPa]", "display": [0.1125, 18.0]},
         {"parameter": "materials.steel.youngs_modulus", "values": [1e9]},
-        {"parameter": "integrator.overlap_limit", "values": [1e-6]},
+        {"parameter": "engine.overlap_limit", "values": [1e-6]},
         {"parameter": "contact.tangential", "values": ["coulomb"]},
         {"parameter": "run.gravity", "values": [[0.0, 0.0, -1.62]]}]})
     sweep = Sweep.load(path)
@@ -186,7 +186,7 @@ def test_prepare_copies_the_files_and_refuses_a_foreign_run(tmp_path, tiny):
         prepare(sweep, out)
     # the same config with the fields the runner fills in (dt, skin, threads) matches
     tiny["materials"][0]["friction_sliding"] = 0.2
-    tiny["integrator"] = {"dt": 2e-6, "skin": 1e-4}
+    tiny["engine"] = {"dt": 2e-6, "skin": 1e-4}
     tiny["run"]["threads"] = 2
     (folder / "config.toml").write_text(dumps(validate(tiny)))
     prepare(sweep, out)

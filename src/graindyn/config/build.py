@@ -50,37 +50,37 @@ def walls(config: Config):
 def simulation_kwargs(config: Config):
     """Keyword arguments of Simulation other than the state."""
     planes, periodic = walls(config)
-    i = config.integrator
+    i = config.engine
     return {"materials": materials(config), "model": contact_model(config), "walls": planes,
             "periodic": periodic, "gravity": config.run.gravity, "dt": i.dt, "skin": i.skin,
-            "integrator": i.name, "allow_large_dt": i.allow_large_dt,
+            "integrator": i.integrator, "allow_large_dt": i.allow_large_dt,
             "overlap_limit": i.overlap_limit, "check_interval": i.check_interval,
             "orientations": i.orientations, "backend": config.run.backend}
 
 
 def check_time_step(config: Config):
     """The time-step report for the smallest grain of the config; ConfigError naming
-    integrator.dt when the step is above the safe fraction of the contact time."""
+    engine.dt when the step is above the safe fraction of the contact time."""
     d = config.grains.diameter.smallest()
     grain = config.material_index(config.grains.material)
     mats = materials(config)
     state = State.create(np.zeros((1, 3)), [0.5 * d], mats[grain].density,
                          dim=config.run.dim, materials=[grain])
     try:
-        report = time_step_report(state, mats, contact_model(config), config.integrator.dt,
-                                  config.integrator.name)
+        report = time_step_report(state, mats, contact_model(config), config.engine.dt,
+                                  config.engine.integrator)
     except (ValueError, ZeroDivisionError) as err:
         raise ConfigError(f"cannot work out a time step: {err}") from None
-    dt = config.integrator.dt
+    dt = config.engine.dt
     if dt is not None and report["fraction"] > report["max_fraction"] \
-            and not config.integrator.allow_large_dt:
+            and not config.engine.allow_large_dt:
         raise ConfigError(
-            f"integrator.dt = {dt:.3g} s is {report['fraction']:.2f} of the "
+            f"engine.dt = {dt:.3g} s is {report['fraction']:.2f} of the "
             f"{report['criterion']} {report['critical_time_s']:.3g} s of the smallest grain"
             + (f" ({report['limit']})" if "limit" in report else "") + "; "
             f"allowed: dt <= {report['max_fraction'] * report['critical_time_s']:.3g} s "
             f"(suggested {report['suggested_dt_s']:.3g} s), or set "
-            "integrator.allow_large_dt = true")
+            "engine.allow_large_dt = true")
     return report
 
 

@@ -230,8 +230,28 @@ class WallsSection(Section):
         [], "periodic directions as (axis 0..2, lo [m], hi [m])")
 
 
-class IntegratorSection(Section):
-    name: str = _f("velocity_verlet", "integrator (see graindyn info)")
+ENGINES = ("soft",)      # the engine kinds a config can name; engine.kind picks one
+# where the fields of a section that older configs had now live
+MOVED = {"integrator": ("engine", {"name": "integrator"})}
+
+
+def moved(path):
+    """The present dotted path of a field that ``path`` names in an older config (the
+    [integrator] section is [engine] now, its ``name`` is ``integrator``), or None if
+    ``path`` did not move."""
+    section, _, field = path.partition(".")
+    if section not in MOVED:
+        return None
+    target, renamed = MOVED[section]
+    return f"{target}.{renamed.get(field, field)}" if field else target
+
+
+class SoftEngine(Section):
+    """The time-driven soft-particle engine (Simulation): grains overlap a little, the
+    contact laws give forces, an explicit integrator advances them by a fixed step."""
+
+    kind: Literal["soft"] = _f("soft", "engine: soft (time-driven soft particles)")
+    integrator: str = _f("velocity_verlet", "integrator (see graindyn info)")
     dt: Float | None = _f(None, "time step [s]; default: the suggested step; (0, 1]", gt=0,
                           le=1)
     allow_large_dt: bool = _f(False, "accept a step above the safe fraction of the contact "
@@ -245,7 +265,7 @@ class IntegratorSection(Section):
                             "leaves them as they are (CPU only; they act on nothing, and "
                             "turning costs about a tenth of a step)")
 
-    @field_validator("name")
+    @field_validator("integrator")
     @classmethod
     def _known(cls, name):
         integrators.integrator_id(name)
@@ -330,7 +350,8 @@ class Config(Section):
                                           min_length=1)
     contact: ContactSection = _f(ContactSection(), "contact law, one per mode")
     walls: WallsSection
-    integrator: IntegratorSection = _f(IntegratorSection(), "time integration")
+    engine: SoftEngine = _f(SoftEngine(), "the engine that advances the grains (kind: "
+                            "soft) and its own settings (integrator, time step, skin)")
     protocol: DepositionProtocol | OedometerProtocol = _f(
         DepositionProtocol(), "what the run does (kind: deposition, the default, or "
         "oedometer)", discriminator="kind")
@@ -342,6 +363,35 @@ class Config(Section):
         if isinstance(data, dict) and isinstance(data.get("protocol"), dict) \
                 and "kind" not in data["protocol"]:
             data = {**data, "protocol": {"kind": "deposition", **data["protocol"]}}
+        return data
+
+    @model_validator(mode="before")
+    @classmethod
+    def _moved_sections(cls, data):
+        """An older config still loads: its [integrator] section is read as [engine]
+        (``name`` as ``integrator``), with a warning saying what to write instead; both
+        sections at once are refused."""
+        if not isinstance(data, dict):
+            return data
+        for section, (target, renamed) in MOVED.items():
+            if section not in data:
+                continue
+            if target in data:
+                raise ValueError(f"[{section}] and [{target}] both given: [{section}] is "
+                                 f"the older name of [{target}]; move its fields there")
+            fields = dict(data[section]) if isinstance(data[section], dict) else {}
+            moved_fields = {renamed.get(k, k): v for k, v in fields.items()}
+            warnings.warn(f"[{section}] is now [{target}]: write [{target}] with "
+                          + ", ".join(f"{renamed.get(k, k)} = {v!r}"
+                                      for k, v in fields.items())
+                          + (" (" + ", ".join(f"{k} is now {v}" for k, v in renamed.items())
+                             + ")" if renamed else ""), DeprecationWarning, stacklevel=2)
+            data = {**{k: v for k, v in data.items() if k != section},
+                    target: moved_fields}
+        engine = data.get("engine")
+        if isinstance(engine, dict) and engine.get("kind", "soft") not in ENGINES:
+            raise ValueError(f"engine.kind = {engine['kind']!r} is not an engine of this "
+                             f"version; engines: {', '.join(ENGINES)}")
         return data
 
     @model_validator(mode="after")

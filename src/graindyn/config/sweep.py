@@ -14,12 +14,13 @@ This module checks the file's own shape (unknown keys, lengths, duplicates); wha
 values mean is checked by building each point's ``Config`` (``graindyn.sweep``).
 """
 import pathlib
+import warnings
 from typing import Any
 
 from pydantic import Field, ValidationError, field_validator, model_validator
 
 from .load import ConfigError, read_toml
-from .models import Float, Int, Section
+from .models import Float, Int, Section, moved
 
 # config fields a sweep sets itself: varying them would be silently overridden
 RESERVED = {"run.seed": "the sweep sets it per point: list the seeds in 'seeds'",
@@ -38,6 +39,17 @@ class VarySection(Section):
                               "parameter in tables and figures, e.g. 'V [GPa]'")
     display: list[Int | Float | str] | None = Field(
         None, description="display values in tables and figures, one per value")
+
+    @field_validator("parameter")
+    @classmethod
+    def _present_path(cls, parameter):
+        """A path of an older config (integrator.dt) names the field where it is now."""
+        now = moved(parameter)
+        if now is not None:
+            warnings.warn(f"vary parameter {parameter!r} is now {now!r}", DeprecationWarning,
+                          stacklevel=2)
+            return now
+        return parameter
 
     @field_validator("values")
     @classmethod
