@@ -613,8 +613,8 @@ def block_count(n, threads):
     both its grains as it is computed) and below SERIAL grains per thread, where a
     step is a few microseconds and entering a parallel region (about 2 us) costs more
     than it saves: the 280-grain bed in two blocks on two threads took 0.40-0.41 s
-    against 0.45-0.47 s in one (session 10), but 0.80-0.82 s at another time of the
-    same day (cause not found; BENCHMARKS.md).  The blocks depend only on n and the
+    against 0.45-0.47 s in one, but 0.80-0.82 s at another time of the same day
+    (cause not found).  The blocks depend only on n and the
     thread count, so sums over them are the same from run to run."""
     if threads == 1 or n < SERIAL * threads:
         return 1

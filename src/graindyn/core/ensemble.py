@@ -1,4 +1,4 @@
-"""Ensemble: many independent simulations advanced together (issue 6).
+"""Ensemble: many independent simulations advanced together.
 
 On the GPU (every member built with backend="gpu") the members run in one set of
 kernel launches (gpu/engine.DeviceEnsemble): what makes sweeps of small samples fast

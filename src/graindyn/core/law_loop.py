@@ -1,4 +1,4 @@
-"""The contact law over a batch of contacts, in SIMD lanes (issue 2).
+"""The contact law over a batch of contacts, in SIMD lanes.
 
 Evaluated one contact at a time inside the pair loop, a Hertz-Mindlin contact is a
 chain of square roots and divisions longer than the processor's out-of-order window,

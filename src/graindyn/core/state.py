@@ -54,7 +54,7 @@ def cell_order(positions, cell):
     cell in their present order (LAMMPS sorts its atoms the same way, `atom_modify
     sort`).  Grains that touch then sit at nearby indices, and the contact loops find
     their data in cache: a 1e5-grain bed given in lattice order ran 500 steps about 20 %
-    faster in cells of the neighbour cutoff (BENCHMARKS.md, session 11).  Returns the
+    faster in cells of the neighbour cutoff (measured with benchmarks/lammps_bed.py --file-order).  Returns the
     permutation for State.reordered."""
     if not cell > 0.0:
         raise ValueError(f"cell must be a positive length, got {cell}")

@@ -1,4 +1,4 @@
-"""GPU backend on numba-cuda (issue 6).  Nothing here is imported by ``import graindyn``:
+"""GPU backend on numba-cuda.  Nothing here is imported by ``import graindyn``:
 ``Simulation(..., backend="gpu")`` imports ``graindyn.gpu.engine`` on its first chunk.
 It needs the ``gpu`` extra (numba-cuda) and an NVIDIA GPU, or the CUDA simulator
 (``NUMBA_ENABLE_CUDASIM=1``, slow: for tests)."""

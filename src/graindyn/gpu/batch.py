@@ -1,4 +1,4 @@
-"""Many whole runs on one GPU, each written as ordinary Python (issue 6, ensembles).
+"""Many whole runs on one GPU, each written as ordinary Python (ensembles).
 
 A protocol (settle, then load level by level, with checks between chunks) drives its
 Simulation with Python between compiled chunks.  ``Batch.run(jobs)`` runs each job (a

@@ -1,4 +1,4 @@
-"""The soft-particle step on the GPU (issue 6): the step of core/loop.run_chunk, one
+"""The soft-particle step on the GPU: the step of core/loop.run_chunk, one
 CUDA thread per grain, built from the CPU's own per-grain functions
 (contacts.pair_row and wall_row, integrators.passes.drift_grain and correct_grain,
 walls.walls_advance) through device.device_function, for an ensemble of K independent

@@ -1,4 +1,4 @@
-"""Neighbour lists built on the device (issue 6): the CPU's rebuild (core/neighbors.py)
+"""Neighbour lists built on the device: the CPU's rebuild (core/neighbors.py)
 as a sequence of kernels, with the CPU's own per-grain functions for the grid, the
 cell of a grain, the pair scan, the wall scan and the history carry-over, for the
 systems of an ensemble whose lists are due (a mask; gpu/layout.py says where each

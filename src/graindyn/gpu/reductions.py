@@ -1,4 +1,4 @@
-"""Reductions over grains on the device (issue 6): the wall totals and dissipated
+"""Reductions over grains on the device: the wall totals and dissipated
 energies of each force evaluation, and, from the correction kernel, the half-skin
 displacement bound and the measures of core/loop._checks (non-finite values, largest
 overlap, largest speed, energies), for each system of an ensemble (gpu/layout.py; one

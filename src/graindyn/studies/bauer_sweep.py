@@ -1,4 +1,4 @@
-"""The sweep summary of the oedometer protocol (issue 7, "The study"): Oquendo et al.'s
+"""The sweep summary of the oedometer protocol ("The study"): Oquendo et al.'s
 Tables 2 and 3 (h_s and eta of Bauer's law for each value of each varied micro-
 parameter) and the figure h_s versus eta of all points, with the power-law fit
 h_s = a eta^b, the Guamo sand experiment and the paper's own fit.

@@ -1,4 +1,4 @@
-"""The integrator study (issue 5): Oquendo Fig. 2, Perez Fig. 3, an order-of-accuracy
+"""The integrator study: Oquendo Fig. 2, Perez Fig. 3, an order-of-accuracy
 table and the symmetric top of VALIDATION G2, written as figures (PNG), tables (CSV, units in the column names) and
 a JSON summary into a run directory.
 
