@@ -117,8 +117,8 @@ def test_neighbour_list_matches_naive_search(case):
         # every pair touching now is listed, and contacts() reports exactly those
         touching = naive.touching_pairs(st.positions, st.radii, lengths)
         assert touching <= listed
-        ci, cj, _ = s.contacts()
-        assert set(zip(ci.tolist(), cj.tolist())) == touching
+        c = s.contacts()
+        assert set(zip(c.i.tolist(), c.j.tolist())) == touching
         checks.append((s.rebuilds, len(touching)))
 
     sim.run(steps=3000, every=[(gd.Periodic(steps=50), check)])
@@ -180,7 +180,7 @@ def test_capacity_overflow_gives_identical_run():
     sizes = []
     grown.run(steps=steps, every=[(gd.Periodic(steps=50),
                                    lambda s: sizes.append(s.pairs[1].size))])
-    assert grown.pairs[1].size > 1 and grown.wall_contacts[1].size > 1
+    assert grown.pairs[1].size > 1 and grown.wall_pairs[1].size > 1
     for name in ("positions", "velocities", "angular_velocities", "orientations", "forces"):
         np.testing.assert_array_equal(getattr(grown.state, name), getattr(normal.state, name))
     assert grown.rebuilds == normal.rebuilds
@@ -236,11 +236,12 @@ def test_force_gather_matches_naive_sum(dim, periodic):
     assert err.max() < 1e-12, err.max()
     assert np.all(st.torques == 0.0)                      # frictionless: no torque
     # per-pair forces of contacts() against the same law
-    i, j, f = sim.contacts()
+    c = sim.contacts()
+    i, j = c.i, c.j
     d = naive.min_image(st.positions[i] - st.positions[j], lengths_of(sim))
     dist = np.linalg.norm(d, axis=1)
     fp = (KN * (st.radii[i] + st.radii[j] - dist) / dist)[:, None] * d
-    np.testing.assert_allclose(f, fp, rtol=1e-12, atol=1e-12 * np.abs(fp).max())
+    np.testing.assert_allclose(c.force, fp, rtol=1e-12, atol=1e-12 * np.abs(fp).max())
 
 
 # --------------------------------------------------- 4. contact history over rebuilds

@@ -153,7 +153,7 @@ def test_batched_walls_equal_contact_by_contact(model, one_thread):
     m = int(w[10][-1])
     w[12][:m] = np.random.default_rng(4).normal(scale=1e-6, size=w[12][:m].shape)
     saved = [a.copy() for a in (w[12], w[16], w[17], g[14])]
-    touching = len(sim.wall_contacts_active()[0])
+    touching = len(sim.wall_contacts().grain)
     assert touching > 150               # two batches and more
     own = sim.pairs[9]
     own[...] = np.random.default_rng(6).normal(size=own.shape)
@@ -215,12 +215,12 @@ def test_grains_of_the_walks_are_refilled_before_every_chunk(one_thread):
         sim.run(steps=20)
         if scribble:
             sim.pairs[4][:] = 0
-            sim.wall_contacts[4][:] = 0
+            sim.wall_pairs[4][:] = 0
         sim.run(steps=20)
         runs.append(sim)
     clean, scribbled = runs
     assert clean.rebuilds == scribbled.rebuilds
-    assert len(clean.wall_contacts_active()[0]) > 0
+    assert len(clean.wall_contacts().grain) > 0
     np.testing.assert_array_equal(scribbled.state.positions, clean.state.positions)
     np.testing.assert_array_equal(scribbled.state.angular_velocities,
                                   clean.state.angular_velocities)

@@ -31,7 +31,7 @@ def make():
 
 def cpu_rebuild(sim):
     while True:
-        p, w = sim.pairs, sim.wall_contacts
+        p, w = sim.pairs, sim.wall_pairs
         needed, wall_needed = rebuild(
             sim.state.positions, sim.state.radii, sim.clock[loop.SKIN], *sim._periodic(),
             *p[:8], sim.walls.kind, sim.walls.geometry, sim.walls.offset, *w[:6],
@@ -45,7 +45,7 @@ def cpu_rebuild(sim):
 
 
 def lists(sim):
-    p, w = sim.pairs, sim.wall_contacts
+    p, w = sim.pairs, sim.wall_pairs
     m, mw = int(p[0][-1]), int(w[0][-1])
     return [p[0], p[1][:m], p[2][:m], p[6], p[7][:m], w[0], w[1][:mw], w[2][:mw],
             sim.state.positions, sim.reference_positions]
@@ -70,9 +70,9 @@ def main():
         sim.state.positions[:] += shift
         m = int(sim.pairs[0][-1])
         sim.pairs[2][:m] = np.arange(m * sim.pairs[2].shape[1]).reshape(m, sim.pairs[2].shape[1])
-        mw = int(sim.wall_contacts[0][-1])
-        sim.wall_contacts[2][:mw] = -np.arange(mw * sim.wall_contacts[2].shape[1]).reshape(
-            mw, sim.wall_contacts[2].shape[1])
+        mw = int(sim.wall_pairs[0][-1])
+        sim.wall_pairs[2][:mw] = -np.arange(mw * sim.wall_pairs[2].shape[1]).reshape(
+            mw, sim.wall_pairs[2].shape[1])
     cpu_rebuild(cpu)
     device._upload()
     device._rebuild(np.ones(1, np.int64))
@@ -83,7 +83,7 @@ def main():
     a = cuda.to_device(values)
     device.lists.scan(a)
     print(json.dumps({"first": first, "second": second, "pairs": int(cpu.pairs[0][-1]),
-                      "walls": int(cpu.wall_contacts[0][-1]), "capacity": grown,
+                      "walls": int(cpu.wall_pairs[0][-1]), "capacity": grown,
                       "carried": int(np.count_nonzero(cpu.pairs[2][:int(cpu.pairs[0][-1])])),
                       "scan": bool(np.array_equal(a.copy_to_host(), np.cumsum(values)))}))
 

@@ -33,18 +33,20 @@ def void_ratio(packing):
     return (1.0 - packing) / packing
 
 
-def coordination_number(sim, exclude_rattlers=False):
-    """Mean number of grain-grain contacts per free grain, Z = 2 C / N.
+def coordination_number(engine, exclude_rattlers=False):
+    """Mean number of grain-grain contacts per free grain of ``engine`` (core.engine),
+    Z = 2 C / N.
 
     exclude_rattlers: leave out grains with fewer than 2 contacts (walls counted), and
     the contacts they carry, as is usual for the mechanical coordination number.
     """
-    i, j, _ = sim.contacts()
-    n = sim.state.n
-    free = sim.state.fixed == 0
+    pairs = engine.contacts()
+    i, j = pairs.i, pairs.j
+    n = engine.state.n
+    free = engine.state.fixed == 0
     if not exclude_rattlers:
         return float(2 * i.size / max(1, int(free.sum())))
-    gi, _, _ = sim.wall_contacts_active()
+    gi = engine.wall_contacts().grain
     keep = free.copy()
     while True:
         count = np.bincount(i[keep[i] & keep[j]], minlength=n) \

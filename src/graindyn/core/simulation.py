@@ -10,15 +10,16 @@ import math
 import numba
 import numpy as np
 
-from . import loop
+from . import energy, loop
 from .contacts import block_count
+from .engine import Contacts, WallContacts
 from .integrators import SCHEMES, SLOTS, history_names, integrator_id
 from .law_loop import law_address, prepare, workspace as law_workspace
 from .neighbors import list_owners
 from .species import ContactModel, Material
 from .timestep import time_step_report
 from .triggers import Periodic
-from .walls import Walls
+from .walls import FIXED, Motion, Walls
 
 
 _PAIR_ARRAYS = ("start", "partners", "history", "scratch_start", "scratch_partners",
@@ -34,6 +35,17 @@ _WALL_CONTACT_ARRAYS = ("start", "ids", "history", "scratch_start", "scratch_ids
 _NOT_TURNED = np.zeros((0, 4))
 
 
+def _gravity(value, dim):
+    """``value`` as a gravity vector (3,) [m/s^2]; ValueError unless it is a finite
+    3-vector with zero z component in 2D."""
+    gravity = np.asarray(value, dtype=np.float64)
+    if gravity.shape != (3,) or not np.all(np.isfinite(gravity)) \
+            or (dim == 2 and gravity[2] != 0):
+        raise ValueError(f"gravity must be a finite 3-vector [m/s^2], with zero z component "
+                         f"in 2D, got {value}")
+    return gravity
+
+
 class SimulationError(RuntimeError):
     """A run stopped because the physics broke down (NaN, excessive overlap)."""
 
@@ -44,7 +56,12 @@ class OverlapError(SimulationError):
 
 
 class Simulation:
-    """A soft-particle DEM simulation (SI units).
+    """A soft-particle DEM simulation (SI units), the soft engine of core/engine.py:
+    protocols, analysis and outputs use it through that interface (state, walls, time,
+    gravity, run, contacts, wall_contacts, energies, snapshot/restore, relocate,
+    set_motion, set_servo, place_wall); ``steps=`` runs, ``dt``, ``step`` and the
+    kernel arrays (``pairs``, ``wall_pairs``: the neighbour and wall-contact lists,
+    ``clock``, ``counters``) are its own.
 
     state : State;  materials : list of Material (grain and wall materials by index)
     model : ContactModel;  walls : list of Plane/Cylinder;  periodic : list of Periodic
@@ -98,9 +115,7 @@ class Simulation:
         self.walls = walls if isinstance(walls, Walls) else Walls(walls, periodic)
         if np.any(self.walls.material >= n_mat):
             raise ValueError(f"wall material ids must be in 0..{n_mat - 1}")
-        gravity = np.asarray(gravity, dtype=np.float64)
-        if gravity.shape != (3,) or (state.dim == 2 and gravity[2] != 0):
-            raise ValueError("gravity must be a 3-vector, with zero z component in 2D")
+        gravity = _gravity(gravity, state.dim)
         self.params = self.model.pair_table(self.materials)
         self.model_ids = self.model.ids()
         self.dt_report = time_step_report(state, self.materials, self.model, dt, integrator)
@@ -170,7 +185,7 @@ class Simulation:
 
     def _allocate_walls(self, capacity):
         n, h, w = self.state.n, self.history_size, self.walls
-        old = getattr(self, "wall_contacts", None)
+        old = getattr(self, "wall_pairs", None)
         start = old[0] if old is not None else np.zeros(n + 1, np.int64)
         ids = np.zeros(capacity, np.uint32)
         history = np.zeros((capacity, h))
@@ -178,9 +193,9 @@ class Simulation:
             m = int(old[0][n])
             ids[:m] = old[1][:m]
             history[:m] = old[2][:m]
-        self.wall_contacts = (start, ids, history, np.zeros(n + 1, np.int64),
-                              np.zeros(capacity, np.uint32), np.zeros((capacity, h)),
-                              np.zeros((capacity, 3)), np.zeros((capacity, 3)))
+        self.wall_pairs = (start, ids, history, np.zeros(n + 1, np.int64),
+                           np.zeros(capacity, np.uint32), np.zeros((capacity, h)),
+                           np.zeros((capacity, 3)), np.zeros((capacity, 3)))
         self.reference_offset = w.offset.copy()
 
     def _allocate_integrator(self):
@@ -225,7 +240,7 @@ class Simulation:
                 s.inertias, s.materials, s.fixed, self.reference_positions, self.max_overlap)
 
     def _walls(self):
-        w, c = self.walls, self.wall_contacts
+        w, c = self.walls, self.wall_pairs
         return (w.kind, w.geometry, w.motion_kind, w.motion, w.base, w.offset, w.velocity,
                 w.material, w.force, self.reference_offset, c[0], c[1], c[2], c[3], c[4],
                 c[5], c[6], c[7])
@@ -287,7 +302,7 @@ class Simulation:
             self._law = prepare(self._law, self.params, self.pairs[1].size)
             # the grains of the pair and wall walks (kept by each rebuild), whatever set the lists
             list_owners(self.pairs[0], self.state.n, self.pairs[4])
-            list_owners(self.wall_contacts[0], self.state.n, self.wall_contacts[4])
+            list_owners(self.wall_pairs[0], self.state.n, self.wall_pairs[4])
             status, done = loop.run_chunk(self.model_ids, self.params, self._law, self._grains(),
                                           self.pairs, self._walls(), self._periodic(),
                                           self.clock, self.counters, self.integrator_history,
@@ -314,12 +329,13 @@ class Simulation:
             need_w = int(self.counters[loop.NEED_WALLS])
             if need_p > self.pairs[1].size:
                 self._allocate_pairs(int(1.3 * need_p) + 64)
-            if need_w > self.wall_contacts[1].size:
+            if need_w > self.wall_pairs[1].size:
                 self._allocate_walls(int(1.3 * need_w) + 16)
 
     def run(self, steps=None, time=None, until=None, every=(), max_chunk=20000,
             between=None):
-        """Advance ``steps`` steps or ``time`` seconds, or until the compiled condition
+        """Advance ``steps`` steps or ``time`` seconds (engine.Engine.run: the run ends
+        at the first step end not before the time), or until the compiled condition
         ``until`` (MaxSpeedBelow, EnergyRatioBelow) holds, whichever comes first.
 
         every : list of (Periodic, callback(sim)) run between chunks when due.
@@ -414,7 +430,7 @@ class Simulation:
         arrays.update({f"integrator/{k}": v for k, v in self.integrator_state.items()})
         for group, names, values in (("pairs", _PAIR_ARRAYS, self.pairs),
                                      ("wall_contacts", _WALL_CONTACT_ARRAYS,
-                                      self.wall_contacts)):
+                                      self.wall_pairs)):
             arrays.update({f"{group}/{k}": v for k, v in zip(names, values)
                            if not k.startswith("scratch_")
                            and f"{group}/{k}" not in _TRANSIENT})
@@ -452,7 +468,7 @@ class Simulation:
                          for k in names)
 
         self.pairs = lists("pairs", _PAIR_ARRAYS)
-        self.wall_contacts = lists("wall_contacts", _WALL_CONTACT_ARRAYS)
+        self.wall_pairs = lists("wall_contacts", _WALL_CONTACT_ARRAYS)
         for k in ("offset", "base", "velocity", "force", "motion_kind", "motion"):
             put(getattr(self.walls, k), f"walls/{k}")
         put(self.reference_positions, "loop/reference_positions")
@@ -467,24 +483,180 @@ class Simulation:
         """Bytes held by the grain, pair and wall-contact arrays of this simulation (and
         the law loop's workspaces once it has run on the CPU)."""
         arrays = list(self.state.arrays().values()) + list(self.pairs) \
-            + list(self.wall_contacts) + [self.reference_positions, self.max_overlap] \
+            + list(self.wall_pairs) + [self.reference_positions, self.max_overlap] \
             + (list(self._law[1:]) if self._law is not None else [])
         return int(sum(a.nbytes for a in arrays))
 
-    def contacts(self):
-        """Touching grain pairs of the last force evaluation: (i, j, force on i (K, 3) [N])."""
-        start, partners, force = self.pairs[0], self.pairs[1], self.pairs[8]
-        n = self.state.n
+    @staticmethod
+    def _touching(lists, names):
+        """(owner grain, listed index, force (K, 3) [N]) of the contacts of the lists
+        ``lists`` (arrays named by ``names``: start, then the listed indices) whose force
+        of the last evaluation is not zero."""
+        arrays = dict(zip(names, lists))
+        start, listed, force = arrays["start"], arrays[names[1]], arrays["force"]
+        n = start.size - 1
         m = int(start[n])
         owner = np.repeat(np.arange(n), np.diff(start))
         touching = np.any(force[:m] != 0.0, axis=1)
-        return owner[touching], partners[:m][touching].astype(np.int64), force[:m][touching]
+        return owner[touching], listed[:m][touching].astype(np.int64), force[:m][touching]
 
-    def wall_contacts_active(self):
-        """Touching grain-wall contacts: (grain, wall, force on grain (K, 3) [N])."""
-        start, ids, force = self.wall_contacts[0], self.wall_contacts[1], self.wall_contacts[6]
-        n = self.state.n
-        m = int(start[n])
-        owner = np.repeat(np.arange(n), np.diff(start))
-        touching = np.any(force[:m] != 0.0, axis=1)
-        return owner[touching], ids[:m][touching].astype(np.int64), force[:m][touching]
+    def contacts(self):
+        """The touching grain pairs of the last force evaluation (engine.Contacts).  The
+        contact point sits R'_i = R_i - h R_j/(R_i + R_j) from the centre of i along -n,
+        h the overlap (core/contacts.py, Oquendo Eq. 3-4)."""
+        i, j, force = self._touching(self.pairs, _PAIR_ARRAYS)
+        s = self.state
+        separation = self.walls.minimum_image(s.positions[i] - s.positions[j])
+        distance = np.linalg.norm(separation, axis=1)
+        normal = separation / distance[:, None]
+        r_i, r_j = s.radii[i], s.radii[j]
+        share = (r_i + r_j - distance) / (r_i + r_j)
+        normal_force = np.einsum("ka,ka->k", force, normal)
+        return Contacts(i, j, -(r_i - share * r_j)[:, None] * normal,
+                        (r_j - share * r_i)[:, None] * normal, normal_force,
+                        force - normal_force[:, None] * normal, normal)
+
+    def wall_contacts(self):
+        """The touching grain-wall contacts of the last force evaluation
+        (engine.WallContacts); the contact point is the foot of the grain's centre on the
+        wall."""
+        grain, wall, force = self._touching(self.wall_pairs, _WALL_CONTACT_ARRAYS)
+        distance, normal = self.walls.distances(self.state.positions[grain], wall)
+        normal_force = np.einsum("ka,ka->k", force, normal)
+        return WallContacts(grain, wall, -distance[:, None] * normal, normal_force,
+                            force - normal_force[:, None] * normal, normal)
+
+    def energies(self):
+        """The energies of engine.ENERGIES [J]: kinetic, rotational and gravitational of
+        the free grains, elastic energy of the listed contacts (core/energy.py), and the
+        dissipation and wall work the loop accumulates."""
+        translational, rotational = energy.kinetic_energy(self.state)
+        return {"kinetic": translational, "rotational": rotational,
+                "gravitational": energy.gravitational_energy(self.state, self.gravity),
+                "elastic": energy.elastic_energy(self.model_ids, self.params, self.state,
+                                                 self.walls, self.pairs, self.wall_pairs),
+                "dissipated_normal": self.dissipated["normal"],
+                "dissipated_tangential": self.dissipated["tangential"],
+                "wall_work": self.wall_work}
+
+    # ------------------------------------------------------------------ changes by hand
+    @property
+    def gravity(self):
+        """Gravitational acceleration (3,) [m/s^2] (a copy).  Setting it makes the next
+        run evaluate the forces afresh before its first step, so that the step starts
+        from accelerations under the new gravity."""
+        return self.clock[loop.GX:loop.GZ + 1].copy()
+
+    @gravity.setter
+    def gravity(self, value):
+        self.clock[loop.GX:loop.GZ + 1] = _gravity(value, self.state.dim)
+        self.counters[loop.PRIMED] = 0
+
+    def relocate(self, indices, positions, velocities, angular_velocities=None):
+        """Move grains ``indices`` to ``positions`` (K, 3) [m] with ``velocities`` (K, 3)
+        [m/s] and ``angular_velocities`` (K, 3) [rad/s] (None: zero), between runs or
+        from a callback of one (engine.Engine.relocate).
+
+        The rows of their pairs and wall contacts lose their history, force and torque
+        (so the contacts they meet at their new place start unloaded), the neighbour
+        lists are rebuilt before the next step, and the integrator starts afresh
+        (reset_integrator_history: the forces are evaluated again first, and the
+        multi-step schemes restart their history for every grain).  The elastic energy
+        the relocated grains' contacts held leaves the energy balance, as their
+        potential and kinetic energy change."""
+        s = self.state
+        idx = np.asarray(indices, dtype=np.int64).reshape(-1)
+        if idx.size == 0:
+            return
+        if idx.min() < 0 or idx.max() >= s.n or np.unique(idx).size != idx.size:
+            raise ValueError(f"relocate needs distinct grain indices in 0..{s.n - 1}")
+        moved = {"positions": positions, "velocities": velocities,
+                 "angular_velocities": np.zeros((idx.size, 3)) if angular_velocities is None
+                 else angular_velocities}
+        for name, value in moved.items():
+            value = np.asarray(value, dtype=np.float64)
+            if value.shape != (idx.size, 3) or not np.all(np.isfinite(value)):
+                raise ValueError(f"relocate: {name} must be finite, ({idx.size}, 3)")
+            moved[name] = value
+        if s.dim == 2 and (np.any(moved["positions"][:, 2] != 0)
+                           or np.any(moved["velocities"][:, 2] != 0)
+                           or np.any(moved["angular_velocities"][:, :2] != 0)):
+            raise ValueError("relocate in 2D: positions and velocities need zero z "
+                             "components, angular velocities zero x and y")
+        for name, value in moved.items():
+            getattr(s, name)[idx] = value
+        chosen = np.zeros(s.n, bool)
+        chosen[idx] = True
+        for lists, names, partners in ((self.pairs, _PAIR_ARRAYS, True),
+                                       (self.wall_pairs, _WALL_CONTACT_ARRAYS, False)):
+            arrays = dict(zip(names, lists))
+            start = arrays["start"]
+            m = int(start[s.n])
+            stale = chosen[np.repeat(np.arange(s.n), np.diff(start))]
+            if partners:                      # a pair is listed by one of its two grains
+                stale |= chosen[arrays["partners"][:m]]
+            for name in ("history", "force", "torque_j" if partners else "torque"):
+                arrays[name][:m][stale] = 0.0
+        self.counters[loop.FORCE_REBUILD] = 1
+        self.reset_integrator_history()
+
+    def set_motion(self, wall, motion):
+        """Prescribe ``motion`` (walls.Motion) to ``wall`` (index or name) from now on
+        (engine.Engine.set_motion): the motion starts at its ``start`` [s] or now,
+        whichever is later, from where the wall is (a sinusoid's reference place, the
+        walls' ``base``, is set there); a fixed wall stops at once."""
+        k = self.walls.index(wall)
+        kind, row = motion.row()
+        row[7] = max(row[7], self.time)
+        w = self.walls
+        w.motion_kind[k], w.motion[k] = kind, row
+        w.base[k] = w.offset[k]
+        if kind == FIXED:
+            w.velocity[k] = 0.0
+
+    def set_servo(self, wall, *, force=None, stress=None, gain=None, time_constant=None,
+                  stiffness=None, max_speed=None, direction=None):
+        """Make ``wall`` a servo (stress-controlled) wall or change its settings
+        (engine.Engine.set_servo; the control law is in walls.py): target ``force`` [N]
+        or ``stress`` [Pa] times the wall's area, gain ``gain`` [m/(N s)] or
+        1/(``stiffness`` [N/m] ``time_constant`` [s]), largest speed ``max_speed``
+        [m/s], ``direction`` into the grains; a setting not given keeps its value on a
+        servo wall."""
+        k = self.walls.index(wall)
+        if stress is not None:
+            if force is not None:
+                raise ValueError("set_servo takes force= or stress=, not both")
+            area = self.walls.walls[k].area
+            if area is None:
+                raise ValueError(f"wall {self.walls.walls[k].name!r} has no area: give the "
+                                 "servo a force [N]")
+            force = stress * area
+        if time_constant is not None or stiffness is not None:
+            if gain is not None or time_constant is None or stiffness is None \
+                    or not time_constant > 0 or not stiffness > 0:
+                raise ValueError("set_servo takes gain= [m/(N s)], or time_constant= [s] "
+                                 "and stiffness= [N/m], both > 0")
+            gain = 1.0 / (stiffness * time_constant)
+        settings = {"force": force, "gain": gain, "max_speed": max_speed,
+                    "direction": direction}
+        now = self.walls.motion_of(k)
+        for name, value in settings.items():
+            if value is None:
+                if now.kind != "servo":
+                    raise ValueError(f"set_servo: wall {self.walls.walls[k].name!r} is not "
+                                     f"a servo yet: give its {name}")
+                settings[name] = getattr(now, name)
+        self.set_motion(k, Motion("servo", **settings))
+
+    def place_wall(self, wall, offset):
+        """Put ``wall`` (index or name) at ``offset`` (3,) [m] from where it was built,
+        at once (engine.Engine.place_wall; a sinusoid goes on about the new place).  The
+        half-skin rule sees the jump, so the lists are rebuilt before the next step; the
+        wall's contacts act from the next force evaluation."""
+        k = self.walls.index(wall)
+        offset = np.asarray(offset, dtype=np.float64)
+        if offset.shape != (3,) or not np.all(np.isfinite(offset)):
+            raise ValueError(f"wall offset must be a finite 3-vector [m], got {offset}")
+        w = self.walls
+        w.base[k] += offset - w.offset[k]
+        w.offset[k] = offset

@@ -82,6 +82,21 @@ class Motion:
         raise ValueError(f"unknown wall motion {self.kind!r}; choose fixed, velocity, "
                          "sinusoid, servo")
 
+    @classmethod
+    def from_row(cls, kind, row):
+        """The Motion of kernel row ``row`` (8,) of kind id ``kind`` (the inverse of row)."""
+        u, start = tuple(float(x) for x in row[:3]), float(row[7])
+        if kind == VELOCITY:
+            return cls("velocity", velocity=tuple(float(x * row[3]) for x in row[:3]),
+                       start=start)
+        if kind == SINUSOID:
+            return cls("sinusoid", direction=u, amplitude=float(row[4]),
+                       frequency=float(row[5]), phase=float(row[6]), start=start)
+        if kind == SERVO:
+            return cls("servo", direction=u, force=float(row[3]), gain=float(row[4]),
+                       max_speed=float(row[5]), start=start)
+        return cls()
+
 
 @dataclass
 class Plane:
@@ -158,7 +173,9 @@ class Periodic:
 
 
 class Walls:
-    """The walls of a simulation, as kernel arrays, plus periodic directions."""
+    """The walls of a simulation, as kernel arrays, plus periodic directions.  The
+    layers above an engine read them; they move walls through the engine's set_motion,
+    set_servo and place_wall (core/engine.py)."""
 
     def __init__(self, walls=(), periodic=()):
         self.walls = list(walls)
@@ -205,11 +222,29 @@ class Walls:
         return dist, normal
 
     def index(self, name):
-        """Index of the wall called ``name``."""
+        """Index of the wall called ``name`` (an index is returned as it is, once checked)."""
+        if isinstance(name, (int, np.integer)):
+            if not 0 <= name < len(self.walls):
+                raise IndexError(f"no wall {name}: there are {len(self.walls)}")
+            return int(name)
         for k, w in enumerate(self.walls):
             if w.name == name:
                 return k
         raise KeyError(f"no wall named {name!r}; walls are {[w.name for w in self.walls]}")
+
+    def motion_of(self, k):
+        """The Motion wall k (index or name) follows now (Motion.from_row)."""
+        k = self.index(k)
+        return Motion.from_row(self.motion_kind[k], self.motion[k])
+
+    def minimum_image(self, vectors):
+        """Separation vectors (K, 3) [m] wrapped to their shortest image along the
+        periodic directions (the NumPy twin of neighbors.min_image)."""
+        wrapped = np.array(vectors, dtype=np.float64)
+        for d in np.flatnonzero(self.periodic_flag):
+            length = self.periodic_length[d]
+            wrapped[:, d] -= length * np.floor(wrapped[:, d] / length + 0.5)
+        return wrapped
 
     def normal_force(self, k):
         """Force [N] the grains push on wall k along its inward normal (plane) or outward."""

@@ -1,4 +1,4 @@
-"""How K independent simulations sit in one set of device arrays (issue 6, ensembles).
+"""How K independent simulations sit in one set of device arrays (ensembles).
 
 The single-system engine is the case K = 1.  System k's grains are rows gb[k]..gb[k+1]
 of every per-grain array; its pair and wall-contact lists keep their own capacity, in
@@ -87,7 +87,7 @@ class Layout:
         row_system, gb, wb, pb, cb, table): called before each upload."""
         self._merge_params()
         self.pb = _bases([s.pairs[1].size for s in self.sims])
-        self.cb = _bases([s.wall_contacts[1].size for s in self.sims])
+        self.cb = _bases([s.wall_pairs[1].size for s in self.sims])
         self.dev = {name: cuda.to_device(getattr(self, name)) for name in
                     ("rb", "row_first", "row_system", "gb", "wb", "pb", "cb", "table")}
 

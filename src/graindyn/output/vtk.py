@@ -70,18 +70,17 @@ def walls_mesh(walls, lo, hi, segments=48):
                        cell_data={"wall": [ids], "force": [walls.force[ids]]})
 
 
-def contacts_mesh(sim):
-    """Touching pairs as lines between centres (pairs across a periodic boundary are
-    left out: their line would cross the domain)."""
-    i, j, force = sim.contacts()
-    p = sim.state.positions
-    direct = np.linalg.norm(p[i] - p[j], axis=1) < sim.state.radii[i] + sim.state.radii[j]
-    i, j, force = i[direct], j[direct], force[direct]
-    normal = p[i] - p[j]
-    normal /= np.linalg.norm(normal, axis=1)[:, None]
-    return meshio.Mesh(p.copy(), [("line", np.stack([i, j], axis=1).reshape(-1, 2))],
-                       cell_data={"normal_force": [np.einsum("ka,ka->k", force, normal)],
-                                  "force": [force]})
+def contacts_mesh(engine):
+    """Touching pairs of ``engine`` (core.engine) as lines between centres (pairs across
+    a periodic boundary are left out: their line would cross the domain)."""
+    c = engine.contacts()
+    p = engine.state.positions
+    direct = np.linalg.norm(p[c.i] - p[c.j], axis=1) \
+        < engine.state.radii[c.i] + engine.state.radii[c.j]
+    return meshio.Mesh(p.copy(), [("line", np.stack([c.i[direct], c.j[direct]],
+                                                    axis=1).reshape(-1, 2))],
+                       cell_data={"normal_force": [c.normal_force[direct]],
+                                  "force": [c.force[direct]]})
 
 
 class VtkSeries:

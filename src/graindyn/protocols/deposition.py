@@ -98,7 +98,7 @@ class Deposition:
         if "armed_step" not in state:
             up = self.dim - 1
             drop = float(np.max(sim.state.positions[:, up] - sim.state.radii)) - self.floor
-            g = float(np.linalg.norm(sim.clock[3:6]))
+            g = float(np.linalg.norm(sim.gravity))
             fall = math.sqrt(2.0 * max(drop, 0.0) / g) if g > 0 else 0.0
             state["armed_step"] = min(end, sim.step + math.ceil(fall / sim.dt))
         status = sim.run(steps=max(0, state["armed_step"] - sim.step), **run)

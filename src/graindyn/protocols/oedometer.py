@@ -45,7 +45,7 @@ from ..analysis.packing import coordination_number
 from ..config import build
 from ..config.models import BoxContainer, Config
 from ..core.simulation import OverlapError, Simulation
-from ..core.walls import SERVO, Plane
+from ..core.walls import Motion, Plane
 from .deposition import Deposition, save_figure
 
 PISTON = "piston"
@@ -115,11 +115,9 @@ class Oedometer(Deposition):
         k = sim.walls.index(PISTON)
         if "level" not in state:
             top = float(np.max(sim.state.positions[:, 2] + sim.state.radii))
-            sim.walls.offset[k, 2] = top + 1e-3 * float(sim.state.radii.min()) \
-                - sim.walls.geometry[k, 2]
-            sim.walls.motion_kind[k] = SERVO
-            sim.walls.motion[k, :3] = (0.0, 0.0, -1.0)
-            sim.walls.motion[k, 5] = p.max_speed
+            offset = sim.walls.offset[k].copy()
+            offset[2] = top + 1e-3 * float(sim.state.radii.min()) - sim.walls.geometry[k, 2]
+            sim.place_wall(k, offset)
             state.update(level=0, rows=[])
             self._arm(sim, state, k)
         chunk = int(max(1, min(max_chunk, p.servo_time / (4 * sim.dt))))
@@ -147,8 +145,7 @@ class Oedometer(Deposition):
                 return "stopped"
             if state["level"] == level:
                 self._finish_level(sim, state, k, False)
-        sim.walls.motion_kind[k] = 0
-        sim.walls.velocity[k] = 0.0
+        sim.set_motion(k, Motion("fixed"))
         return "done"
 
     def _stop_early(self, state, err):
@@ -164,14 +161,16 @@ class Oedometer(Deposition):
                  f"{len(state['rows'])} levels done")
 
     def _arm(self, sim, state, k):
-        """Start the current level: the servo's target force and the level's deadline."""
+        """Start the current level: the servo's target force, its gain no higher than
+        v_max/(BAND F_target) (the whole bound at the first level, when the piston
+        becomes a servo moving down at up to v_max) and the level's deadline."""
+        p = self.config.protocol
         target = self.levels[state["level"]][0] * self.cross_section
-        sim.walls.motion[k, 3] = target
-        bound = self.config.protocol.max_speed / (BAND * target)
-        sim.walls.motion[k, 4] = min(sim.walls.motion[k, 4], bound) if state["level"] \
-            else bound
-        state["level_end"] = sim.step + math.ceil(
-            self.config.protocol.level_max_time / sim.dt - 1e-9)
+        bound = p.max_speed / (BAND * target)
+        gain = min(sim.walls.motion_of(k).gain, bound) if state["level"] else bound
+        sim.set_servo(k, force=target, gain=gain, max_speed=p.max_speed,
+                      direction=(0.0, 0.0, -1.0))
+        state["level_end"] = sim.step + math.ceil(p.level_max_time / sim.dt - 1e-9)
 
     def _tune(self, sim, k, state):
         """Servo gain g = min(v_max/(BAND F_target), 1/(tau K)), K the sample's stiffness seen
@@ -179,7 +178,8 @@ class Oedometer(Deposition):
         the piston's contacts (the sample behind them is softer); no cap when the sample
         yields (dF/dz <= 0).  The last (z, F) is kept in ``state`` (checkpointed)."""
         p = self.config.protocol
-        target = sim.walls.motion[k, 3]
+        servo = sim.walls.motion_of(k)
+        target = servo.force
         z = float(sim.walls.offset[k, 2])
         force = sim.walls.normal_force(k)
         gain = p.max_speed / (BAND * target)
@@ -189,23 +189,20 @@ class Oedometer(Deposition):
             if stiffness > 0:
                 gain = min(gain, 1.0 / (p.servo_time * stiffness))
         elif "servo" in state:
-            gain = sim.walls.motion[k, 4]
+            gain = servo.gain
         state["servo"] = (z, force)
-        sim.walls.motion[k, 4] = gain
+        sim.set_servo(k, gain=gain)
 
     @staticmethod
     def _contact_stiffness(sim, k):
-        """Tangent stiffness [N/m] of the contacts on wall k: sum of 1.5 F_c/delta_c."""
-        grains, walls, force = sim.wall_contacts_active()
-        mine = walls == k
-        if not mine.any():
-            return 0.0
-        g = grains[mine]
-        dist, normal = sim.walls.distances(sim.state.positions[g], walls[mine])
-        overlap = sim.state.radii[g] - dist
-        fn = np.einsum("ka,ka->k", force[mine], normal)
+        """Tangent stiffness [N/m] of the contacts on wall k: sum of 1.5 F_c/delta_c
+        (Hertz), the overlap delta_c = R - |branch| of each."""
+        contacts = sim.wall_contacts()
+        mine = contacts.wall == k
+        overlap = sim.state.radii[contacts.grain[mine]] \
+            - np.linalg.norm(contacts.branch[mine], axis=1)
         ok = overlap > 0
-        return float(np.sum(1.5 * fn[ok] / overlap[ok]))
+        return float(np.sum(1.5 * contacts.normal_force[mine][ok] / overlap[ok]))
 
     def _at_rest(self, sim, k):
         """Piston force on target, the sample in static equilibrium (bottom force plus
@@ -214,7 +211,7 @@ class Oedometer(Deposition):
         does not balance) and the kinetic energy small against the elastic energy."""
         p = self.config.protocol
         walls = sim.walls
-        target = walls.motion[k, 3]
+        target = walls.motion_of(k).force
         piston = walls.normal_force(k)
         if abs(piston - target) > p.force_tolerance * target:
             return False
@@ -233,7 +230,7 @@ class Oedometer(Deposition):
     @staticmethod
     def _weight(sim):
         """Weight [N] of the free grains."""
-        return float(np.sum(sim.state.masses[sim.state.fixed == 0])) * float(-sim.clock[5])
+        return float(np.sum(sim.state.masses[sim.state.fixed == 0])) * float(-sim.gravity[2])
 
     def _finish_level(self, sim, state, k, at_rest):
         target, branch = self.levels[state["level"]]
@@ -259,10 +256,8 @@ class Oedometer(Deposition):
         height = z_top - z_bottom
         solid = float(np.sum(4.0 / 3.0 * np.pi * s.radii**3))
         sides = [walls.index(name) for name in self.side_walls]
-        grains, ids, force = sim.wall_contacts_active()
-        on_side = np.isin(ids, sides)
-        _, normal = walls.distances(s.positions[grains[on_side]], ids[on_side])
-        lateral = float(np.sum(np.einsum("ka,ka->k", force[on_side], normal))) \
+        contacts = sim.wall_contacts()
+        lateral = float(np.sum(contacts.normal_force[np.isin(contacts.wall, sides)])) \
             / (self.perimeter * height)
         top = walls.normal_force(piston) / self.cross_section
         bot = walls.normal_force(bottom) / self.cross_section

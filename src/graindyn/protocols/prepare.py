@@ -190,7 +190,7 @@ def settle_report(sim, reached, criterion, bottom_wall=None, cross_section=None)
               "coordination_number": coordination_number(sim),
               "coordination_number_mechanical": coordination_number(sim, exclude_rattlers=True),
               "energy_J": energy_budget(sim)}
-    weight = float(np.sum(s.masses[s.fixed == 0]) * np.linalg.norm(sim.clock[3:6]))
+    weight = float(np.sum(s.masses[s.fixed == 0]) * np.linalg.norm(sim.gravity))
     report["total_weight_N"] = weight
     if bottom_wall is not None:
         k = sim.walls.index(bottom_wall)

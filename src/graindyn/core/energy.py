@@ -1,0 +1,63 @@
+"""The energies of a soft-particle simulation [J] that are not accumulated in its clock:
+kinetic (translational, rotational), gravitational, and elastic energy stored in the
+contacts (Simulation.energies gathers them with the dissipation the loop accumulates).
+"""
+import numpy as np
+
+from .._jit import kernel
+from ..physics.contact import contact_energy
+from .neighbors import min_image
+from .walls import wall_distance
+
+
+@kernel
+def _elastic(model, params, positions, radii, materials, periodic_flag, periodic_length, start,
+             partners, history, wall_kind, wall_geometry, wall_offset, wall_material,
+             wall_start, wall_ids, wall_history):
+    total = 0.0
+    for i in range(radii.size):
+        for k in range(start[i], start[i + 1]):
+            j = partners[k]
+            d2 = 0.0
+            for d in range(3):
+                dx = min_image(positions[i, d] - positions[j, d], periodic_flag[d],
+                               periodic_length[d])
+                d2 += dx * dx
+            rsum = radii[i] + radii[j]
+            overlap = rsum - np.sqrt(d2)
+            if overlap > 0.0:
+                total += contact_energy(model, params, materials[i], materials[j], overlap,
+                                        radii[i] * radii[j] / rsum, history, k)
+        for q in range(wall_start[i], wall_start[i + 1]):
+            w = wall_ids[q]
+            dist, nx, ny, nz = wall_distance(wall_kind, wall_geometry, wall_offset, w,
+                                             positions[i, 0], positions[i, 1], positions[i, 2])
+            overlap = radii[i] - dist
+            if overlap > 0.0:
+                total += contact_energy(model, params, materials[i], wall_material[w], overlap,
+                                        radii[i], wall_history, q)
+    return total
+
+
+def elastic_energy(model_ids, params, state, walls, pairs, wall_pairs):
+    """Energy stored in the normal and tangential springs of all listed contacts [J]
+    (physics.contact.contact_energy of each touching pair and wall contact)."""
+    return float(_elastic(model_ids, params, state.positions, state.radii, state.materials,
+                          walls.periodic_flag, walls.periodic_length, pairs[0], pairs[1],
+                          pairs[2], walls.kind, walls.geometry, walls.offset, walls.material,
+                          wall_pairs[0], wall_pairs[1], wall_pairs[2]))
+
+
+def kinetic_energy(state):
+    """(translational, rotational) kinetic energy of the free grains [J]."""
+    free = state.fixed == 0
+    v2 = np.einsum("ij,ij->i", state.velocities, state.velocities)
+    w2 = np.einsum("ij,ij->i", state.angular_velocities, state.angular_velocities)
+    return (float(0.5 * np.sum(state.masses[free] * v2[free])),
+            float(0.5 * np.sum(state.inertias[free] * w2[free])))
+
+
+def gravitational_energy(state, gravity):
+    """-sum m g.r of the free grains [J] (zero at the origin)."""
+    free = state.fixed == 0
+    return float(-np.sum(state.masses[free] * (state.positions[free] @ np.asarray(gravity))))

@@ -1,0 +1,177 @@
+"""The engine interface: what every engine offers to the layers above it (protocols,
+analysis, outputs), whatever its method of moving grains.
+
+Today's engine is the soft-particle DEM of ``Simulation`` (time steps, overlapping
+grains).  An event-driven engine (hard grains, collision by collision) and a contact
+dynamics engine (rigid grains, contact forces from the non-smooth laws) are to offer
+the same interface, so nothing here speaks of time steps, skins, neighbour lists or
+overlaps: durations are simulated time, contacts are what they carry, walls move by
+physical laws.
+
+Conventions (README): SI units; the contact normal n points from grain j to grain i
+(from the wall to the grain for a wall contact) and forces are those on grain i
+(on the grain); a positive normal force pushes the two apart.
+"""
+from typing import NamedTuple, Protocol, runtime_checkable
+
+import numpy as np
+
+from .state import State
+from .walls import Motion, Walls
+
+# the energies every engine reports [J], and what each is
+ENERGIES = {
+    "kinetic": "translational kinetic energy of the free grains, sum m v^2/2",
+    "rotational": "rotational kinetic energy of the free grains, sum I w^2/2",
+    "gravitational": "-sum m g.r of the free grains (zero at the origin)",
+    "elastic": "energy stored in the contacts (zero for rigid grains)",
+    "dissipated_normal": "energy dissipated by the normal contact law since the start",
+    "dissipated_tangential": "energy dissipated by friction and the tangential, rolling "
+                             "and twisting laws since the start",
+    "wall_work": "work done on the grains by moving walls since the start",
+}
+
+
+class Contacts(NamedTuple):
+    """The touching grain pairs (K of them) with what they carry.
+
+    i, j : (K,) int64 grain indices;  n below points from j to i.
+    branch_i, branch_j : (K, 3) [m] from the centre of i (of j) to the contact point;
+      branch_j - branch_i = r_i - r_j, the minimum image across periodic directions.
+    normal_force : (K,) [N] the force on i along n, positive when it pushes i away from j.
+    tangential_force : (K, 3) [N] the force on i in the contact plane.
+    normal : (K, 3) unit normal n.
+    The force on j is minus the force on i (Newton's third law).
+    """
+
+    i: np.ndarray
+    j: np.ndarray
+    branch_i: np.ndarray
+    branch_j: np.ndarray
+    normal_force: np.ndarray
+    tangential_force: np.ndarray
+    normal: np.ndarray
+
+    @property
+    def force(self):
+        """(K, 3) [N] the whole contact force on grain i."""
+        return self.normal_force[:, None] * self.normal + self.tangential_force
+
+
+class WallContacts(NamedTuple):
+    """The touching grain-wall contacts (K of them) with what they carry.
+
+    grain, wall : (K,) int64 grain and wall indices;  n below points from the wall to
+      the grain.
+    branch : (K, 3) [m] from the centre of the grain to the contact point on the wall.
+    normal_force : (K,) [N] the force on the grain along n, positive when it pushes the
+      grain away from the wall.
+    tangential_force : (K, 3) [N] the force on the grain in the contact plane.
+    normal : (K, 3) unit normal n.
+    """
+
+    grain: np.ndarray
+    wall: np.ndarray
+    branch: np.ndarray
+    normal_force: np.ndarray
+    tangential_force: np.ndarray
+    normal: np.ndarray
+
+    @property
+    def force(self):
+        """(K, 3) [N] the whole contact force on the grain."""
+        return self.normal_force[:, None] * self.normal + self.tangential_force
+
+
+@runtime_checkable
+class Engine(Protocol):
+    """What the layers above an engine may use of it.  The engine owns its arrays:
+    the layers above read ``state`` and ``walls`` and change them only through the
+    methods here (relocate, set_motion, set_servo, place_wall, gravity), which keep
+    the engine's own bookkeeping (contact histories, lists, wall references) right.
+
+    Walls (``wall`` arguments) are given by index or by name (Walls.index).
+    """
+
+    state: State
+    """The grains (core.state.State): positions [m], velocities [m/s], radii [m]..."""
+
+    walls: Walls
+    """The walls (core.walls.Walls): geometry, offset [m] and velocity [m/s] of each
+    wall, the force the grains exert on it [N] (Walls.normal_force, Walls.stress), its
+    prescribed motion (Walls.motion_of)."""
+
+    @property
+    def time(self) -> float:
+        """Simulated time [s]."""
+
+    @property
+    def gravity(self) -> np.ndarray:
+        """Gravitational acceleration (3,) [m/s^2] (a copy); setting it acts from the
+        next step on, ValueError unless a finite 3-vector (in 2D with zero z)."""
+
+    @gravity.setter
+    def gravity(self, value) -> None: ...
+
+    def run(self, *, time=None, until=None, every=(), between=None) -> str:
+        """Advance the simulated time by ``time`` [s] (required, an upper bound also with
+        ``until``): the run ends at the first instant the engine stops at that is not
+        before time + ``time`` (a time-stepping engine: the end of the step that reaches
+        it), or earlier when the stop condition ``until`` (core.triggers.MaxSpeedBelow,
+        EnergyRatioBelow) holds.
+
+        every : (core.triggers.Periodic(time=...), callback(engine)) pairs, each
+          callback run every ``time`` seconds of simulated time.
+        between : callback(engine) run at each pause of the engine (at least as often as
+          ``every`` fires); returning True stops the run.
+        Returns "done", "condition" (``until`` held) or "stopped" (``between``); raises
+        SimulationError when the physics breaks down."""
+
+    def contacts(self) -> Contacts:
+        """The touching grain pairs now (Contacts)."""
+
+    def wall_contacts(self) -> WallContacts:
+        """The touching grain-wall contacts now (WallContacts)."""
+
+    def energies(self) -> dict:
+        """Every energy of ENERGIES by name [J] (floats); their balance, kinetic +
+        rotational + gravitational + elastic + dissipated - wall work, stays constant
+        (analysis.energy.energy_budget)."""
+
+    def snapshot(self) -> dict:
+        """Every mutable array of the run by name (copies); ``restore`` of it into an
+        engine built from the same inputs continues the run bit for bit."""
+
+    def restore(self, arrays) -> None:
+        """Put a ``snapshot`` back; ValueError naming what is missing or does not fit."""
+
+    def relocate(self, indices, positions, velocities, angular_velocities=None) -> None:
+        """Move grains ``indices`` to ``positions`` (K, 3) [m] with ``velocities`` (K, 3)
+        [m/s] and ``angular_velocities`` (K, 3) [rad/s] (None: zero), e.g. to re-inject
+        grains that left a silo.  The grains arrive without any memory of the contacts
+        they had (their tangential springs and other contact history are forgotten) and
+        meet their new neighbours and walls from the next step on."""
+
+    def set_motion(self, wall, motion: Motion) -> None:
+        """Prescribe the motion (core.walls.Motion) of ``wall`` from now on: "fixed"
+        stops it; "velocity" and "sinusoid" start from where the wall is now, at the
+        motion's ``start`` [s] (simulated time) or now if that has passed; "servo" as
+        set_servo."""
+
+    def set_servo(self, wall, *, force=None, stress=None, gain=None, time_constant=None,
+                  stiffness=None, max_speed=None, direction=None) -> None:
+        """Make ``wall`` a stress-controlled wall, or change the settings of one: it moves
+        along ``direction`` (a 3-vector into the grains) at
+
+            v = clamp(g (F_target - F), -v_max, v_max),
+
+        F [N] the force the grains exert against ``direction``.  The target F_target is
+        ``force`` [N] or ``stress`` [Pa] times the wall's area; the gain g [m/(N s)] is
+        ``gain``, or 1/(``stiffness`` [N/m] ``time_constant`` [s]): against a sample of
+        that stiffness the force error then decays as exp(-t/time_constant).
+        v_max = ``max_speed`` [m/s].  Settings not given keep their values on a wall that
+        is a servo already and are required otherwise."""
+
+    def place_wall(self, wall, offset) -> None:
+        """Put ``wall`` at ``offset`` (3,) [m] from the place it was built at, at once
+        (the grains in its way are not swept along: place it where none is)."""
