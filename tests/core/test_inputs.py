@@ -65,3 +65,14 @@ def test_bad_state_and_radii():
     with pytest.raises(ValueError, match="run needs steps= or time="):
         gd.Simulation(_state(), [gd.Material()], gd.ContactModel(),
                       gravity=(0, 0, 0)).run()
+
+
+def test_state_owns_writable_copies_of_what_it_is_given():
+    """A read-only view (np.broadcast_to of one radius) or the caller's own array become
+    the State's own writable copies: the compiled loop is typed on writable arrays, and
+    a second type would compile it again."""
+    mine = np.array([1e-3, 2e-3])
+    st = gd.State.create([[0, 0, 0], [0, 0, 1e-2]], mine, 2650.0, materials=np.zeros(2, int))
+    one = gd.State.create([[0, 0, 0]], np.broadcast_to(1e-3, 1), 2650.0)
+    assert one.radii.flags.writeable and st.radii.flags.writeable
+    assert not np.shares_memory(st.radii, mine) and st.materials.dtype == np.int32

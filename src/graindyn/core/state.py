@@ -104,7 +104,9 @@ class State:
         """
         if dim not in (2, 3):
             raise ValueError(f"dim must be 2 or 3, got {dim}")
-        radii = np.ascontiguousarray(radii, dtype=np.float64)
+        # copies: the State owns its arrays (never the caller's, never a read-only view
+        # such as np.broadcast_to's, which the compiled loop would be compiled again for)
+        radii = np.array(radii, dtype=np.float64).reshape(-1)
         n = radii.size
         pos = np.zeros((n, 3))
         p = np.asarray(positions, dtype=np.float64).reshape(n, -1)
@@ -130,7 +132,7 @@ class State:
         state = cls(dim, pos, zeros(), zeros(), quat, zeros(), zeros(), zeros(), zeros(),
                     radii, masses, inertias,
                     np.zeros(n, np.int32) if materials is None
-                    else np.ascontiguousarray(materials, dtype=np.int32),
+                    else np.array(materials, dtype=np.int32).reshape(-1),
                     np.zeros(n, np.int8))
         if velocities is not None:
             v = np.asarray(velocities, dtype=np.float64).reshape(n, -1)
