@@ -83,8 +83,10 @@ def main(argv):
     laws = argv[10].split(",") if len(argv) == 11 else ["hertz", "tsuji", "mindlin"]
     import numba
 
-    numba.set_num_threads(int(threads))
+    import graindyn  # noqa: F401  (chooses numba's threading layer before threads start)
     from graindyn.analysis.packing import coordination_number
+
+    numba.set_num_threads(int(threads))
 
     sim = bed(state_file, cyl, size, young, rest, dt, skin, laws, orientations, sort)
     state = sim.state
