@@ -32,6 +32,12 @@ ENERGIES = {
 }
 
 
+def _whole_force(contacts):
+    """(K, 3) [N] the whole force of each contact on its grain i (or grain):
+    normal_force n + tangential_force."""
+    return contacts.normal_force[:, None] * contacts.normal + contacts.tangential_force
+
+
 class Contacts(NamedTuple):
     """The touching grain pairs (K of them) with what they carry.
 
@@ -52,10 +58,7 @@ class Contacts(NamedTuple):
     tangential_force: np.ndarray
     normal: np.ndarray
 
-    @property
-    def force(self):
-        """(K, 3) [N] the whole contact force on grain i."""
-        return self.normal_force[:, None] * self.normal + self.tangential_force
+    force = property(_whole_force)
 
 
 class WallContacts(NamedTuple):
@@ -77,10 +80,7 @@ class WallContacts(NamedTuple):
     tangential_force: np.ndarray
     normal: np.ndarray
 
-    @property
-    def force(self):
-        """(K, 3) [N] the whole contact force on the grain."""
-        return self.normal_force[:, None] * self.normal + self.tangential_force
+    force = property(_whole_force)
 
 
 @runtime_checkable
