@@ -22,7 +22,6 @@ from .analysis.energy import energy_budget
 from .analysis.packing import coordination_number
 from .config import ConfigError, build, dumps, load
 from .config.models import Config
-from .core import loop
 from .core.state import State
 from .core.triggers import Periodic
 from .output import checkpoint
@@ -217,7 +216,7 @@ def execute(config: Config, out, show_progress=True, echo=print):
     sim = protocol.create(rng)
     resolved = config.model_copy(deep=True)
     resolved.engine.dt = sim.dt
-    resolved.engine.skin = float(sim.clock[loop.SKIN])
+    resolved.engine.skin = sim.skin
     rundir = RunDirectory.create(out, dumps(resolved), {
         "seed": config.run.seed, "threads": threads, "threads_chosen": why,
         "threading_layer": threading_policy.layer(), "backend": config.run.backend,

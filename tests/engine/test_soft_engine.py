@@ -64,3 +64,11 @@ def test_servo_settings_are_required_once_and_kept_after():
     servo = sim.walls.motion_of("piston")
     assert (servo.kind, servo.force, servo.gain, servo.max_speed, servo.direction) == (
         "servo", 2e-3, 0.5, 0.01, (0.0, 0.0, -1.0))
+
+
+def test_skin_is_the_one_the_lists_use():
+    """Simulation.skin [m] is the skin given (the resolved config records it)."""
+    st = gd.State.create([[0.0, 0.0, 1e-3]], [5e-4], 2650.0)
+    sim = gd.Simulation(st, [gd.Material(density=2650.0)], gd.ContactModel("hertz"),
+                        skin=1.5e-4)
+    assert sim.skin == 1.5e-4

@@ -256,6 +256,12 @@ class Simulation:
         return float(self.clock[loop.DT])
 
     @property
+    def skin(self):
+        """Neighbour-list skin [m]: lists hold the pairs closer than the sum of radii plus
+        this, and are rebuilt when some grain may have moved more than half of it."""
+        return float(self.clock[loop.SKIN])
+
+    @property
     def time(self):
         """Simulated time [s]."""
         return float(self.clock[loop.TIME])
