@@ -4,7 +4,7 @@
 
 Builds the bed of benchmarks/lammps_bed.py (same arguments), runs 500 steps, then
 times, each in a compiled loop of REPS calls (default 500, best of 5 batches), the
-kernels one step of the velocity Verlet calls (core/loop.py): the half-skin test,
+kernels one step of the velocity Verlet calls (engines/soft/loop.py): the half-skin test,
 drift, pair forces, wall forces (and the sum onto walls), the gather-and-correct pass (alone, and with the next step's drift),
 and a whole step (run_chunk).  Prints microseconds per call.  The kernels run on the
 settled bed, restored before each batch of calls.
@@ -24,9 +24,9 @@ def main(argv):
     state_file, cyl, size, young, rest, dt, skin, threads = argv[:8]
     reps = int(argv[8]) if len(argv) == 9 else 500
     numba.set_num_threads(int(threads))
-    from graindyn.core import loop
-    from graindyn.core.contacts import PAIRS, WALLS, contact_forces
-    from graindyn.core.integrators import before_force
+    from graindyn.engines.soft import loop
+    from graindyn.engines.soft.contacts import PAIRS, WALLS, contact_forces
+    from graindyn.engines.soft.integrators import before_force
 
     sim = bed(state_file, cyl, size, young, rest, dt, skin)
     sim.run(steps=500)

@@ -4,12 +4,12 @@ Importing compiles nothing: kernels compile on first use and are cached on disk.
 """
 __version__ = "0.1.0"
 
-from .core.ensemble import Ensemble
-from .core.simulation import Simulation, SimulationError
 from .core.species import ContactModel, Material
 from .core.state import State, cell_order, sample_radii
 from .core.triggers import EnergyRatioBelow, MaxSpeedBelow, Periodic
 from .core.walls import Cylinder, Motion, Periodic as PeriodicBoundary, Plane, box
+from .engines.soft.ensemble import Ensemble
+from .engines.soft.simulation import Simulation, SimulationError
 
 __all__ = ["Simulation", "SimulationError", "Ensemble", "ContactModel", "Material", "State",
            "cell_order", "sample_radii", "EnergyRatioBelow", "MaxSpeedBelow", "Periodic", "Cylinder",

@@ -9,7 +9,7 @@ compile time by three; LLVM inlining keeps all but about 3 % of the speed);
 ``kernel`` for serial array loops; ``parallel`` for loops over grains or contacts with
 ``prange``; ``driver`` for the time loop and what it calls every step, compiled without
 reference counting (each call counted every array of the bundles it was passed in and
-out: 2.3 us per step, core/loop.py): a driver and all it calls must allocate nothing,
+out: 2.3 us per step, engines/soft/loop.py): a driver and all it calls must allocate nothing,
 as numba compiles them all without it; ``block`` for the serial body of one block of
 a parallel loop (no reference counting), ``block_body`` for such a body LLVM-inlined into a block that calls it with
 constant arguments, so that the branches they decide fold away (or into several
@@ -23,7 +23,7 @@ raising, and fastmath stays off so that results are reproducible across machines
 Numba checks a cached kernel only against its own source file, not against the
 functions it inlines from other files, so the cache lives in a folder named by a hash
 of the engine source: any edit starts a fresh cache and nothing stale is ever loaded.
-The hash covers physics/, core/ (the kernels and every constant they read) and any
+The hash covers physics/, core/, engines/ (the kernels and every constant they read) and any
 other module that imports this one; pure-Python layers (config, output, CLI, run
 driver) are left out, so editing them keeps the cache.
 The folder's name also carries numba's threading layer (chosen in _threads, imported
@@ -41,7 +41,7 @@ from numba.core.dispatcher import Dispatcher
 from . import _threads
 
 _SOURCE = pathlib.Path(__file__).parent
-ENGINE = ("physics", "core", "_jit.py")
+ENGINE = ("physics", "core", "engines", "_jit.py")
 
 
 def source_digest():
@@ -99,7 +99,7 @@ prange = numba.prange
 
 def callback(signature):
     """A C callback of the given numba signature, cached on disk (the CPU's law loops,
-    core/law_loop.py, called from compiled code through their address)."""
+    engines/soft/law_loop.py, called from compiled code through their address)."""
     return numba.cfunc(signature, cache=True, error_model="numpy")
 
 
@@ -109,8 +109,8 @@ def retarget(dispatcher, make, memo, swap=None, suffix=""):
     (recursively, once each, in ``memo``) and the names in ``swap`` to their
     replacements; everything else (math, module constants) is shared.  ``suffix`` is
     added to the qualified names (the disk cache keys on them).  The GPU backend
-    builds its device functions this way (gpu/device.py), the CPU's vectorized law
-    loop its workspace laws (core/law_loop.py)."""
+    builds its device functions this way (engines/soft/gpu/device.py), the CPU's vectorized law
+    loop its workspace laws (engines/soft/law_loop.py)."""
     twin = memo.get(dispatcher)
     if twin is not None:
         return twin

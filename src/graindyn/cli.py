@@ -44,7 +44,7 @@ def run(
     checkpoints/.  SIGINT or SIGTERM writes a checkpoint and stops (exit 130/143).
     """
     from .config import ConfigError, load
-    from .core.simulation import SimulationError
+    from .engines.soft.simulation import SimulationError
     from .output.checkpoint import CheckpointError
     from .runner import RunInterrupted, execute
     from .runner import resume as resume_run
@@ -106,10 +106,10 @@ def info():
     import numpy as np
 
     from . import _jit, _threads
-    from .core.integrators import NAMES
+    from .engines.soft.integrators import NAMES
     from .physics import registry
 
-    from .gpu import unavailable
+    from .engines.soft.gpu import unavailable
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -52,7 +52,7 @@ def check(config: Config):
     except ValueError as err:
         raise ConfigError(f"contact: {err}") from None
     if config.run.backend == "gpu":
-        from .gpu import unavailable
+        from .engines.soft.gpu import unavailable
         reason = unavailable()
         if reason:
             raise ConfigError(f"run.backend = 'gpu': {reason}; use backend = 'cpu'")

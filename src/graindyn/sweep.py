@@ -17,7 +17,7 @@ run itself (not computed twice).  Layout of the sweep directory:
     (protocol tables and figures, e.g. bauer_vertical.md, figures/hs_eta_vertical.png)
 
 Runs whose config says ``run.backend = "gpu"`` do not go to Dask (unless a scheduler
-or client is given): they run in this process as one GPU ensemble (gpu/batch.py), each
+or client is given): they run in this process as one GPU ensemble (engines/soft/gpu/batch.py), each
 run's protocol in its own thread and their chunks launched together, each run giving
 the numbers it gives alone.
 
@@ -545,9 +545,9 @@ def _say_outcome(say, head, p, outcome, out):
 
 def _run_batched(todo, out, threads, say):
     """Runs with backend gpu, all in this process as one ensemble on the GPU
-    (gpu/batch.py: each run's protocol in its own thread, their chunks launched
+    (engines/soft/gpu/batch.py: each run's protocol in its own thread, their chunks launched
     together); each gets the numbers it gets alone."""
-    from .gpu.batch import Batch
+    from .engines.soft.gpu.batch import Batch
 
     say(f"running {len(todo)} run(s) with backend gpu together, as one GPU ensemble")
     jobs = [functools.partial(run_point, p.config, str(out / p.name), threads)

@@ -3,8 +3,8 @@
 The device side is checked under the CUDA simulator in tests/gpu."""
 import threading
 
-from graindyn.core import loop
-from graindyn.gpu.batch import Batch
+from graindyn.engines.soft import loop
+from graindyn.engines.soft.gpu.batch import Batch
 
 
 class Recorder(Batch):

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import graindyn as gd
-from graindyn.core import loop
+from graindyn.engines.soft import loop
 from graindyn.physics.contact import contact_energy
 from graindyn.physics.registry import COL
 

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 import graindyn as gd
-from graindyn.core.simulation import OverlapError
-from graindyn.gpu.layout import Layout
+from graindyn.engines.soft.simulation import OverlapError
+from graindyn.engines.soft.gpu.layout import Layout
 
 
 def bed(seed, model=("hertz", "tsuji", "mindlin"), deep=False):

@@ -1,4 +1,4 @@
-"""The Gear schemes' time-step guard (core/timestep.GEAR_HERTZ_FRACTION): at the step
+"""The Gear schemes' time-step guard (engines/soft/timestep.GEAR_HERTZ_FRACTION): at the step
 velocity Verlet takes with a Hertz law (0.2 of the Rayleigh time) an oblique, spinning
 grain-grain impact with Karrech's tangential dashpot blows up under gear5 and gear6;
 at the step the report now suggests for them it conserves energy (kinetic + elastic +

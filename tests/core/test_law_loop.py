@@ -1,4 +1,4 @@
-"""The CPU's batched, vectorized law (core/law_loop.py, contacts._pair_block) against
+"""The CPU's batched, vectorized law (engines/soft/law_loop.py, contacts._pair_block) against
 the contact-by-contact evaluation (contacts.pair_row, the GPU's path): on a dense,
 polydisperse, two-material bed with spinning grains and random contact histories,
 every model composition gives the same pair forces and histories, to the bit, across
@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import graindyn as gd
-from graindyn.core.contacts import PAIRS, WALLS, contact_forces, pair_row, wall_row
-from graindyn.core.law_loop import prepare, workspace
+from graindyn.engines.soft.contacts import PAIRS, WALLS, contact_forces, pair_row, wall_row
+from graindyn.engines.soft.law_loop import prepare, workspace
 
 MODELS = [("hertz", "tsuji", "mindlin"), ("hooke", "linear", "cundall_strack"),
           ("hertz", "viscoelastic", "oquendo", "none", "oquendo"),
@@ -179,7 +179,7 @@ def test_block_count_keeps_tiny_systems_on_one_block():
     """One block on one thread and below SERIAL grains per thread (no parallel region);
     else one per thread at least, about 2048 grains each, at most two per thread and
     MAX_BLOCKS."""
-    from graindyn.core.contacts import MAX_BLOCKS, SERIAL, block_count
+    from graindyn.engines.soft.contacts import MAX_BLOCKS, SERIAL, block_count
     assert block_count(10**6, 1) == 1
     assert block_count(200, 2) == 1
     assert block_count(2 * SERIAL - 1, 2) == 1
@@ -194,7 +194,7 @@ def test_block_count_keeps_tiny_systems_on_one_block():
 def test_workspace_rows_start_on_cache_lines():
     """Every block's workspace and every row of it (STRIDE doubles) start on a 64-byte
     boundary, so the law loop's 512-bit accesses never straddle two cache lines."""
-    from graindyn.core.law_loop import STRIDE
+    from graindyn.engines.soft.law_loop import STRIDE
     for blocks in (1, 3, 7):
         work = workspace(blocks, 4)[0]
         assert work.flags.c_contiguous and not work.any()

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import graindyn as gd
-from graindyn.core.integrators import NAMES
+from graindyn.engines.soft.integrators import NAMES
 
 STEPS = 150
 

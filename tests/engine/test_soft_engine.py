@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import graindyn as gd
-from graindyn.core.integrators import NAMES
+from graindyn.engines.soft.integrators import NAMES
 
 from .test_contract import DOWN, R, floor, soft
 

@@ -13,7 +13,7 @@ import json
 import numpy as np
 
 import graindyn as gd
-from graindyn.core.simulation import SimulationError
+from graindyn.engines.soft.simulation import SimulationError
 
 from cudasim_parity import make as make_bed
 

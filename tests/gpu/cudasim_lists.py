@@ -1,5 +1,5 @@
 """Run by tests/gpu/test_cudasim.py under NUMBA_ENABLE_CUDASIM=1: neighbour lists built
-by the device kernels (gpu/neighbours.py) against core/neighbors.rebuild on a
+by the device kernels (engines/soft/gpu/neighbours.py) against core/neighbors.rebuild on a
 polydisperse bed, periodic in x and y, walls in z, more grains than a thread block;
 then every grain moved and each listed pair given a history, and both rebuilt again
 (history carried over).  Also the device prefix sum over several blocks.
@@ -10,9 +10,9 @@ import numpy as np
 from numba import cuda
 
 import graindyn as gd
-from graindyn.core import loop
+from graindyn.engines.soft import loop
 from graindyn.core.neighbors import rebuild
-from graindyn.gpu.engine import DeviceEnsemble
+from graindyn.engines.soft.gpu.engine import DeviceEnsemble
 
 
 def make():

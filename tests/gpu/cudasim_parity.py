@@ -8,7 +8,7 @@ import sys
 import numpy as np
 
 import graindyn as gd
-from graindyn.core.simulation import OverlapError
+from graindyn.engines.soft.simulation import OverlapError
 from graindyn.core.walls import Motion
 
 

@@ -14,7 +14,7 @@ from graindyn.config import Config, ConfigError, dumps, load, validate
 from graindyn.config.build import simulation_kwargs
 from graindyn.config.models import MaterialSection, material_fields
 from graindyn.core.species import ContactModel, Material
-from graindyn.gpu import unavailable
+from graindyn.engines.soft.gpu import unavailable
 from graindyn.physics import registry
 
 runner = CliRunner()

@@ -12,7 +12,7 @@ import pytest
 from typer.testing import CliRunner
 
 from graindyn.cli import app
-from graindyn.gpu import unavailable
+from graindyn.engines.soft.gpu import unavailable
 from graindyn.output import checkpoint
 
 from .conftest import cli as _cli

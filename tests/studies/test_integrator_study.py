@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from graindyn.core.integrators import NAMES
+from graindyn.engines.soft.integrators import NAMES
 from graindyn.studies.integrators import OQUENDO_SCHEMES, PEREZ_SPEED, run_integrator_study
 
 

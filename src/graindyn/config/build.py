@@ -6,8 +6,8 @@ import numpy as np
 
 from ..core.species import ContactModel, Material
 from ..core.state import State, sample_radii
-from ..core.timestep import time_step_report
 from ..core.walls import Cylinder, Motion, Periodic, Plane, box
+from ..engines.soft.timestep import time_step_report
 from .load import ConfigError
 from .models import BoxContainer, Config
 

@@ -14,7 +14,7 @@ from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, field_valida
     model_validator
 from pydantic_core import PydanticCustomError
 
-from ..core import integrators
+from ..engines.soft import integrators
 from ..physics import registry
 
 # random sequential insertion jams at these solid fractions (Torquato, Random

@@ -2,7 +2,8 @@
 time, and the compiled stop conditions that end a ``run`` early."""
 from dataclasses import dataclass
 
-from . import loop
+# the compiled stop conditions (the engines' checks read these codes)
+NO_CONDITION, MAX_SPEED_BELOW, ENERGY_RATIO_BELOW = 0, 1, 2
 
 
 @dataclass(frozen=True)
@@ -30,7 +31,7 @@ class MaxSpeedBelow:
     """Stop when the largest grain speed falls below ``speed`` [m/s]."""
 
     speed: float
-    kind = loop.MAX_SPEED_BELOW
+    kind = MAX_SPEED_BELOW
 
     @property
     def value(self):
@@ -43,7 +44,7 @@ class EnergyRatioBelow:
     <= epsilon, about 1e-6).  E_p is the gravitational energy above the lowest grain."""
 
     ratio: float
-    kind = loop.ENERGY_RATIO_BELOW
+    kind = ENERGY_RATIO_BELOW
 
     @property
     def value(self):

@@ -2,7 +2,7 @@
 ``history[hrow(k, c)]`` is value c of contact k, ``params[prow(a, b, col)]`` column col
 of the material pair (a, b).  In the engine's arrays (contacts x values, materials x
 materials x columns) they are plain tuples.  The CPU's vectorized law loop
-(core/law_loop.py) compiles the same laws with versions that point into the rows of
+(engines/soft/law_loop.py) compiles the same laws with versions that point into the rows of
 its workspace, where one contact's values sit a fixed stride apart, so that the
 compiler can evaluate several contacts in SIMD lanes."""
 from .._jit import scalar

@@ -126,7 +126,7 @@ def tangential_mindlin_rescale(shear_eff, contact_radius, history, k, h):
     kt = tangential_mindlin_stiffness(shear_eff, contact_radius)
     z2 = zx * zx + zy * zy + zz * zz
     # without branches (selects, every store made), so that the CPU's law loop can
-    # evaluate contacts in SIMD lanes (core/law_loop.py); the values are those of the
+    # evaluate contacts in SIMD lanes (engines/soft/law_loop.py); the values are those of the
     # branching form: s = 1 leaves zeta as it is
     grow = (contact_radius > a_old) & (a_old > 0.0)
     s = a_old / contact_radius if grow else 1.0

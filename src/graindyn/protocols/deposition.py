@@ -11,9 +11,9 @@ import numpy as np
 
 from ..config import build
 from ..config.models import BoxContainer, Config
-from ..core.simulation import Simulation
 from ..core.state import State, cell_order
 from ..core.triggers import EnergyRatioBelow, MaxSpeedBelow
+from ..engines.soft.simulation import Simulation
 from .prepare import BoxRegion, CylinderRegion, lattice_insertion, random_insertion, \
     settle_report
 

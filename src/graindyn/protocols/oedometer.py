@@ -44,8 +44,8 @@ from ..analysis.energy import energy_budget
 from ..analysis.packing import coordination_number
 from ..config import build
 from ..config.models import BoxContainer, Config
-from ..core.simulation import OverlapError, Simulation
 from ..core.walls import Motion, Plane
+from ..engines.soft.simulation import OverlapError, Simulation
 from .deposition import Deposition, save_figure
 
 PISTON = "piston"

@@ -12,12 +12,12 @@ import pathlib
 import numpy as np
 
 from ..analysis.energy import energy_budget
-from ..core.integrators import NAMES, STAGES, integrator_id
-from ..core.simulation import Simulation
 from ..core.species import ContactModel, Material
 from ..core.state import State
 from ..core.triggers import Periodic
 from ..core.walls import Plane, box
+from ..engines.soft.integrators import NAMES, STAGES, integrator_id
+from ..engines.soft.simulation import Simulation
 from ..physics import reference as ref
 from .problems import resting_grain_error, symmetric_top_errors
 

@@ -3,11 +3,11 @@ import math
 
 import numpy as np
 
-from ..core.integrators.rotation import quaternion_leapfrog
-from ..core.simulation import Simulation
 from ..core.species import ContactModel, Material
 from ..core.state import State
 from ..core.walls import Plane
+from ..engines.soft.integrators.rotation import quaternion_leapfrog
+from ..engines.soft.simulation import Simulation
 
 RADIUS = 0.01       # m
 DENSITY = 1000.0    # kg/m^3

@@ -1,7 +1,7 @@
 """Ensemble: many independent simulations advanced together.
 
 On the GPU (every member built with backend="gpu") the members run in one set of
-kernel launches (gpu/engine.DeviceEnsemble): what makes sweeps of small samples fast
+kernel launches (engines/soft/gpu/engine.DeviceEnsemble): what makes sweeps of small samples fast
 there.  On the CPU they run one after another.  Either way member k gives the numbers
 it gives when run alone, to the bit.
 
@@ -12,6 +12,7 @@ Members may differ in grains, walls, materials, time step, gravity, periodicity 
 stop condition; on the GPU they must share the contact model, the dimension and the
 integrator.
 """
+from ...core.triggers import NO_CONDITION
 from . import loop
 from .simulation import SimulationError
 
@@ -30,7 +31,7 @@ class Ensemble:
         self.backend = backends.pop()
         self._device = None
         if self.backend == "gpu":
-            from ..gpu.layout import Layout
+            from .gpu.layout import Layout
             Layout.check(self.sims)
 
     def run(self, steps=None, time=None, until=None, max_chunk=20000, between=None):
@@ -53,7 +54,7 @@ class Ensemble:
         ends = [s.begin_run(n, t, u) for s, n, t, u in zip(self.sims, steps, time, until)]
         outcomes = ["done" if s.step >= e else None for s, e in zip(self.sims, ends)]
         if self._device is None:
-            from ..gpu.engine import DeviceEnsemble
+            from .gpu.engine import DeviceEnsemble
             self._device = DeviceEnsemble(self.sims)
         try:
             while None in outcomes:
@@ -73,7 +74,7 @@ class Ensemble:
                     outcomes = [o if o is not None else "stopped" for o in outcomes]
         finally:
             for sim in self.sims:
-                sim.counters[loop.COND_KIND] = loop.NO_CONDITION
+                sim.counters[loop.COND_KIND] = NO_CONDITION
         return outcomes
 
     def _run_one(self, sim, steps, time, until, max_chunk, between):

@@ -22,7 +22,7 @@ derivatives the corrector has built up, then restoring everything else.
 """
 import numpy as np
 
-from ..._jit import scalar
+from ...._jit import scalar
 from .ids import GEAR3, GEAR5, GEAR6
 
 GEAR_K = np.zeros((GEAR6 + 1, 6))

@@ -1,5 +1,5 @@
 """GPU backend on numba-cuda.  Nothing here is imported by ``import graindyn``:
-``Simulation(..., backend="gpu")`` imports ``graindyn.gpu.engine`` on its first chunk.
+``Simulation(..., backend="gpu")`` imports ``graindyn.engines.soft.gpu.engine`` on its first chunk.
 It needs the ``gpu`` extra (numba-cuda) and an NVIDIA GPU, or the CUDA simulator
 (``NUMBA_ENABLE_CUDASIM=1``, slow: for tests)."""
 import importlib.util

@@ -19,7 +19,7 @@ each distinct table stored once.
 import numpy as np
 from numba import cuda
 
-from ..core import loop
+from .. import loop
 
 ROW = 128              # most grains per row (and threads per block of per-grain kernels)
 

@@ -17,7 +17,7 @@ import threading
 
 import numpy as np
 
-from ..core import loop
+from .. import loop
 
 _LOCAL = threading.local()
 

@@ -4,10 +4,10 @@ contacts (Simulation.energies gathers them with the dissipation the loop accumul
 """
 import numpy as np
 
-from .._jit import kernel
-from ..physics.contact import contact_energy
-from .neighbors import min_image
-from .walls import wall_distance
+from ..._jit import kernel
+from ...core.neighbors import min_image
+from ...core.walls import wall_distance
+from ...physics.contact import contact_energy
 
 
 @kernel

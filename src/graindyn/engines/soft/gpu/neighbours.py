@@ -1,7 +1,7 @@
 """Neighbour lists built on the device: the CPU's rebuild (core/neighbors.py)
 as a sequence of kernels, with the CPU's own per-grain functions for the grid, the
 cell of a grain, the pair scan, the wall scan and the history carry-over, for the
-systems of an ensemble whose lists are due (a mask; gpu/layout.py says where each
+systems of an ensemble whose lists are due (a mask; engines/soft/gpu/layout.py says where each
 system's grains, lists and walls sit; one system is the case K = 1).
 
 1. wrap periodic coordinates and reduce each system's bounding box (per-row min/max
@@ -24,9 +24,9 @@ import math
 import numpy as np
 from numba import cuda, float64, int64
 
-from ..core.neighbors import (carry_row, cell_id, grid_from_extent, scan_grain, wall_row,
+from ....core.neighbors import (carry_row, cell_id, grid_from_extent, scan_grain, wall_row,
                               wrap_coordinate)
-from ..core import loop
+from .. import loop
 from .device import device_function
 from .layout import ROW, row_grain
 from .reductions import MAX, MIN, block_rows, fold, ops_array
@@ -263,7 +263,7 @@ def kernels():
 
 class DeviceNeighbours:
     """Scratch arrays and the host side of the device rebuild for the systems of a
-    layout (gpu/layout.py)."""
+    layout (engines/soft/gpu/layout.py)."""
 
     def __init__(self, layout):
         self.k = dict(kernels(), **reduction_kernels())

@@ -24,7 +24,7 @@ In exact arithmetic verlet, leap_frog and velocity_verlet_plain give the same
 trajectory (Stormer-Verlet); they differ in round-off, in the variable carried from
 step to step, and in nothing else.
 """
-from ..._jit import scalar
+from ...._jit import scalar
 from .ids import LEAP_FROG, OPTIMIZED_VELOCITY_VERLET, VELOCITY_VERLET, VELOCITY_VERLET_PLAIN, \
     VERLET
 

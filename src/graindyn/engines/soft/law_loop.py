@@ -4,7 +4,7 @@ Evaluated one contact at a time inside the pair loop, a Hertz-Mindlin contact is
 chain of square roots and divisions longer than the processor's out-of-order window,
 and consecutive contacts barely overlap (BENCHMARKS.md).  Here the pair loop gathers
 up to CAP touching contacts into a workspace whose rows hold one quantity each (the
-inputs of contacts.contact_response, its outputs, the pair-table row of the contact's
+inputs of response.contact_response, its outputs, the pair-table row of the contact's
 materials and each history value), and one compiled loop evaluates the law over them:
 with the model fixed at compile time and every access a row of one array at a stride
 the compiler knows, it runs several contacts per instruction (AVX2/AVX-512).
@@ -27,8 +27,10 @@ from numba import carray, types
 from numba.core.dispatcher import Dispatcher
 from numba.extending import intrinsic
 
-from .._jit import callback, kernel, retarget, scalar
-from ..physics.registry import COL
+from ..._jit import callback, kernel, retarget, scalar
+from ...physics.contact import contact_force
+from ...physics.registry import COL
+from .response import contact_geometry, contact_response
 
 CAP = 64              # contacts per batch (workspace columns)
 # doubles from one workspace row to the next: rows 512 bytes apart fell into 8 of the
@@ -97,7 +99,7 @@ def _law_rows(workspace, count, dt, pairs):
     """The law for contacts 0..count-1 of the workspace (template: MODEL,
     contact_geometry, stage_geometry and contact_response are set in each compiled
     copy); with
-    ``pairs``, their geometry first (contacts.contact_geometry), in a loop of its own
+    ``pairs``, their geometry first (response.contact_geometry), in a loop of its own
     that leaves in the rows what a wall contact stages: with the geometry under a
     branch inside the law loop, the vectorized loop computed it for the wall
     contacts too (6.8 against 5.2 ns per wall contact)."""
@@ -218,9 +220,6 @@ def law_address(model_ids):
     """Address of the compiled law loop for the model ``model_ids`` (ContactModel.ids())."""
     key = tuple(int(x) for x in model_ids)
     if key not in _LOOPS:
-        from ..physics.contact import contact_force
-        from .contacts import contact_geometry, contact_response
-
         suffix = "_" + "_".join(str(x) for x in key)
         make = scalar
         swap = {"hrow": workspace_hrow, "prow": workspace_prow}

@@ -8,7 +8,7 @@ Start (no a(-h) yet): the first step is the velocity Verlet step of Perez Eq. 27
 whose local errors O(h^3) match Beeman's own, instead of a(-h) = a(0), which would
 leave an O(h^2) velocity error in Eq. 34.
 """
-from ..._jit import scalar
+from ...._jit import scalar
 
 
 @scalar

@@ -8,7 +8,7 @@ same twins serve the CUDA simulator (``NUMBA_ENABLE_CUDASIM=1``), where compiled
 code cannot take the simulator's arrays, and a real GPU.  numba.cuda is imported only
 here and only when called, so importing graindyn never needs it.
 """
-from .._jit import retarget
+from ...._jit import retarget
 
 _TWINS = {}
 

@@ -25,11 +25,12 @@ import math
 
 import numpy as np
 
-from .._jit import driver, kernel, scalar
+from ..._jit import driver, kernel, scalar
+from ...core.neighbors import rebuild
+from ...core.triggers import ENERGY_RATIO_BELOW, MAX_SPEED_BELOW
+from ...core.walls import walls_advance
 from .contacts import PAIRS, WALLS, contact_forces, largest
 from .integrators import STAGES, after_force, before_force
-from .neighbors import rebuild
-from .walls import walls_advance
 
 # return codes of run_chunk (and relist: DONE, GROW, NAN)
 DONE, CONDITION, GROW, NAN, OVERLAP, RELIST = 0, 1, 2, 3, 4, 5
@@ -43,8 +44,6 @@ NCOUNTERS = 11
 # counters[FORCE_REBUILD]: 1 forced; RELISTED: the lists were just rebuilt for the step
 # run_chunk returned RELIST in (after its first drift, or before the priming evaluation)
 RELISTED = 3
-# compiled stop conditions
-NO_CONDITION, MAX_SPEED_BELOW, ENERGY_RATIO_BELOW = 0, 1, 2
 
 
 def new_clock(dt, skin, gravity):

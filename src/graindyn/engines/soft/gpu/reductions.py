@@ -1,7 +1,7 @@
 """Reductions over grains on the device: the wall totals and dissipated
 energies of each force evaluation, and, from the correction kernel, the half-skin
-displacement bound and the measures of core/loop._checks (non-finite values, largest
-overlap, largest speed, energies), for each system of an ensemble (gpu/layout.py; one
+displacement bound and the measures of engines/soft/loop._checks (non-finite values, largest
+overlap, largest speed, energies), for each system of an ensemble (engines/soft/gpu/layout.py; one
 system is the case K = 1).
 
 Each is three steps: one row per at most ROW consecutive grains of one system (the
@@ -20,7 +20,7 @@ import math
 import numpy as np
 from numba import cuda, float64
 
-from ..core import loop
+from .. import loop
 
 FOLD = 256             # most threads of a folding block (a power of two)
 SUM, MAX, MIN = 0, 1, 2

@@ -1,26 +1,26 @@
-"""The soft-particle step on the GPU: the step of core/loop.run_chunk, one
+"""The soft-particle step on the GPU: the step of engines/soft/loop.run_chunk, one
 CUDA thread per grain, built from the CPU's own per-grain functions
 (contacts.pair_row and wall_row, integrators.passes.drift_grain and correct_grain,
 walls.walls_advance) through device.device_function, for an ensemble of K independent
-systems advanced by one set of kernel launches (gpu/layout.py; a single simulation is
+systems advanced by one set of kernel launches (engines/soft/gpu/layout.py; a single simulation is
 the case K = 1).  Systems may differ in grains, walls, materials, time step, gravity,
 periodicity and stop condition; they share the contact model and the integrator.
 
 ``Simulation(..., backend="gpu")`` runs its chunks here, and so does
-``Ensemble(..., backend="gpu")`` (core/ensemble.py): the arrays go to the device at
+``Ensemble(..., backend="gpu")`` (engines/soft/ensemble.py): the arrays go to the device at
 the start of a chunk and come back at its end, so everything between chunks (triggers,
 outputs, protocols, checkpoints) sees the same host arrays as on the CPU, and a
 checkpoint written on one backend resumes on the other.  Within a chunk:
 * forces, contact histories, walls and the integrator advance on the device;
 * wall totals, energies, the displacement bound and the checks of run_chunk (non-finite
   values, overlap, stop condition, every check_interval steps) are device reductions
-  (gpu/reductions.py), per system, and one thread per system ends each step on the
+  (engines/soft/gpu/reductions.py), per system, and one thread per system ends each step on the
   device (finish_kernel): it counts the step, applies the checks, and masks the system
   out when it stops (its condition, a NaN, an overlap, the end of its steps) or when
   the half-skin rule says its lists must be rebuilt (a pause) while the others go on;
 * so the host enqueues steps in batches without reading anything, then reads the
   per-system run table once: it rebuilds the lists of the paused systems on the device
-  (gpu/neighbours.py; the list sizes are read back at each build) and resumes them.
+  (engines/soft/gpu/neighbours.py; the list sizes are read back at each build) and resumes them.
   The batch is sized to end about where the next rebuild is expected (DeviceEnsemble._batch),
   so the host is touched about once per rebuild.
 System k of an ensemble gives the same numbers, to the bit, as the same system alone.
@@ -30,11 +30,11 @@ import math
 import numpy as np
 from numba import cuda, float64
 
-from ..core import loop
-from ..core.contacts import gather_grain, pair_row, wall_row
-from ..core.integrators import STAGES
-from ..core.integrators.passes import correct_grain, drift_grain
-from ..core.walls import walls_advance
+from ....core.walls import walls_advance
+from .. import loop
+from ..contacts import gather_grain, pair_row, wall_row
+from ..integrators import STAGES
+from ..integrators.passes import correct_grain, drift_grain
 from .device import device_function
 from .layout import ROW, SCRATCH, Layout, bundles, row_grain
 from .neighbours import DeviceNeighbours
@@ -134,7 +134,7 @@ def kernels():
                        max_overlap, run, last, rows, ops):
         """Gather and correct grain i (step scale * dt); the bound's measures of the row
         (reductions.DISPLACED ...) go to rows[row], and when the step is checked (the
-        ``last`` stage, run[k, CHECK]) the measures of core/loop._checks too
+        ``last`` stage, run[k, CHECK]) the measures of engines/soft/loop._checks too
         (reductions.BAD ...; the grains' largest overlaps are then reset, unless
         run[k, CHECK] is 2)."""
         buf = cuda.shared.array((ROW, COLUMNS), float64)
@@ -181,7 +181,7 @@ def kernels():
     @cuda.jit
     def decide_kernel(wb, mask, clock, offset, reference_offset, velocity, control):
         """control[k] = 1 when system k's lists must be rebuilt before this step
-        (core/loop.rebuild_due, thread k)."""
+        (engines/soft/loop.rebuild_due, thread k)."""
         k = cuda.grid(1)
         if k < mask.size:
             a, b = wb[k], wb[k + 1]
@@ -192,9 +192,9 @@ def kernels():
     def finish_kernel(wb, mask, run, clock, started, folded, offset, reference_offset,
                       velocity):
         """The end of system k's step (thread k): its displacement bound, time, step
-        count and checks (core/loop.verdict) on the device; it stops (mask 0) with its
+        count and checks (engines/soft/loop.verdict) on the device; it stops (mask 0) with its
         status when done, failed or its condition holds, and pauses with RELIST when its
-        lists must be rebuilt before the next step (core/loop.rebuild_due)."""
+        lists must be rebuilt before the next step (engines/soft/loop.rebuild_due)."""
         k = cuda.grid(1)
         if k >= mask.size or mask[k] == 0:
             return
@@ -226,7 +226,7 @@ def kernels():
 
 class DeviceEnsemble:
     """The device side of K Simulations (backend "gpu"): ``chunk(nsteps)`` is
-    core/loop.run_chunk for each of them on the GPU, with the same return values per
+    engines/soft/loop.run_chunk for each of them on the GPU, with the same return values per
     system.  Same integrators, laws and walls as the CPU; results agree with it to
     floating-point reordering (fused multiply-adds on the device, sums of energies in
     another association), and system k agrees with the same system alone to the bit."""
@@ -306,7 +306,7 @@ class DeviceEnsemble:
                     self.layout.split(group, q, dev.copy_to_host())
 
     def _rebuild(self, due):
-        """Device-side neighbour build (gpu/neighbours.py) of the systems with due[k].
+        """Device-side neighbour build (engines/soft/gpu/neighbours.py) of the systems with due[k].
         When a list outgrows its slots, that system's arrays are grown on the host as
         the CPU loop does (the old lists kept) and the build runs again.  Returns the
         systems whose positions are not finite (nothing rebuilt)."""
@@ -459,7 +459,7 @@ class DeviceEnsemble:
 
     def _due(self, which):
         """The systems of the boolean mask ``which`` whose lists must be rebuilt before
-        their next step (core/loop.rebuild_due, on the device; one read)."""
+        their next step (engines/soft/loop.rebuild_due, on the device; one read)."""
         if not which.any():
             return which
         w = self.dev["walls"]

@@ -10,16 +10,16 @@ import math
 import numba
 import numpy as np
 
+from ...core.engine import Contacts, WallContacts
+from ...core.neighbors import list_owners
+from ...core.species import ContactModel, Material
+from ...core.triggers import NO_CONDITION, Periodic
+from ...core.walls import FIXED, Motion, Walls
 from . import energy, loop
 from .contacts import block_count
-from .engine import Contacts, WallContacts
 from .integrators import SCHEMES, SLOTS, history_names, integrator_id
 from .law_loop import law_address, prepare, workspace as law_workspace
-from .neighbors import list_owners
-from .species import ContactModel, Material
 from .timestep import time_step_report
-from .triggers import Periodic
-from .walls import FIXED, Motion, Walls
 
 
 _PAIR_ARRAYS = ("start", "partners", "history", "scratch_start", "scratch_partners",
@@ -70,7 +70,7 @@ class Simulation:
     overlap_limit : stop when some overlap exceeds this fraction of the smaller radius.
     check_interval : steps between NaN/overlap/stop-condition checks.
     integrator : one of integrators.NAMES (integrators/ids.py lists each with its equation).
-    backend : "cpu" (compiled loops, numba threads) or "gpu" (gpu/engine.py: the same
+    backend : "cpu" (compiled loops, numba threads) or "gpu" (engines/soft/gpu/engine.py: the same
       step on an NVIDIA GPU; the arrays travel to the device and back once per chunk).
     orientations : False leaves state.orientations as they are (on the CPU): spheres
       and disks turn without their orientation acting on anything, and turning each
@@ -99,13 +99,13 @@ class Simulation:
                              "the grains")
         self.orientations = bool(orientations)
         if backend == "gpu":
-            from ..gpu import unavailable
+            from .gpu import unavailable
             reason = unavailable()
             if reason:
                 raise ValueError(f"backend 'gpu': {reason}")
         self.backend = backend
         self._device = None
-        self._law = None            # the CPU's batched law (core/law_loop.py), when used
+        self._law = None            # the CPU's batched law (engines/soft/law_loop.py), when used
         self.state = state
         self.materials = list(materials) if materials else [Material()]
         self.model = model or ContactModel()
@@ -290,12 +290,12 @@ class Simulation:
     def _chunk(self, nsteps):
         """Run up to nsteps compiled steps, growing storage as needed."""
         if self.backend == "gpu":
-            from ..gpu.batch import current
+            from .gpu.batch import current
             batch = current()
             if batch is not None:            # one job of a gpu.batch.Batch
                 return batch.chunk(self, nsteps)
             if self._device is None:
-                from ..gpu.engine import DeviceEnsemble
+                from .gpu.engine import DeviceEnsemble
                 self._device = DeviceEnsemble([self])
             status, done = self._device.chunk([nsteps])
             return int(status[0]), int(done[0])
@@ -372,7 +372,7 @@ class Simulation:
                 if between is not None and between(self):
                     return "stopped"
         finally:
-            self.counters[loop.COND_KIND] = loop.NO_CONDITION
+            self.counters[loop.COND_KIND] = NO_CONDITION
         return "done"
 
     def begin_run(self, steps, time, until):
@@ -387,7 +387,7 @@ class Simulation:
             raise ValueError(f"steps must be >= 0, got {steps}")
         if self.counters[loop.HISTORY_STEPS] == 0 and steps > 0:
             self._start_derivatives()
-        self.counters[loop.COND_KIND] = until.kind if until is not None else loop.NO_CONDITION
+        self.counters[loop.COND_KIND] = until.kind if until is not None else NO_CONDITION
         self.clock[loop.COND_VALUE] = until.value if until is not None else 0.0
         return self.step + steps
 
@@ -509,7 +509,7 @@ class Simulation:
     def contacts(self):
         """The touching grain pairs of the last force evaluation (engine.Contacts).  The
         contact point sits R'_i = R_i - h R_j/(R_i + R_j) from the centre of i along -n,
-        h the overlap (core/contacts.py, Oquendo Eq. 3-4)."""
+        h the overlap (engines/soft/contacts.py, Oquendo Eq. 3-4)."""
         i, j, force = self._touching(self.pairs, _PAIR_ARRAYS)
         s = self.state
         separation = self.walls.minimum_image(s.positions[i] - s.positions[j])
@@ -534,7 +534,7 @@ class Simulation:
 
     def energies(self):
         """The energies of engine.ENERGIES [J]: kinetic, rotational and gravitational of
-        the free grains, elastic energy of the listed contacts (core/energy.py), and the
+        the free grains, elastic energy of the listed contacts (engines/soft/energy.py), and the
         dissipation and wall work the loop accumulates."""
         translational, rotational = energy.kinetic_energy(self.state)
         return {"kinetic": translational, "rotational": rotational,

@@ -15,9 +15,9 @@ import math
 
 import numpy as np
 
-from ..._jit import block, block_body, parallel, prange, scalar
+from ...._jit import block, block_body, parallel, prange, scalar
+from ....core.neighbors import min_image
 from ..contacts import gather_pairs, largest
-from ..neighbors import min_image
 from .beeman import beeman_correct, beeman_drift
 from .gear import gear_correct, gear_drift
 from .ids import (BEEMAN, GEAR3, LEAP_FROG, OPTIMIZED_VELOCITY_VERLET, SLOTS,
