@@ -37,27 +37,30 @@ def main(argv):
     def t_due(reps, model, params, law, clock, g, w, p, pairs, counters, history, scratch):
         s = 0
         for _ in range(reps):
-            s += loop.rebuild_due(clock, w[5], w[9], w[6])
+            s += loop.rebuild_due(clock, w.offset, w.reference_offset, w.velocity)
         return s
 
     @numba.njit(_nrt=False)
     def t_drift(reps, model, params, law, clock, g, w, p, pairs, counters, history, scratch):
         for _ in range(reps):
             before_force(counters[loop.INTEGRATOR], np.int64(0), clock[loop.DT],
-                         counters[loop.HISTORY_STEPS] > 0, g[0], g[1], g[2], g[3], g[6],
-                         g[7], g[12], history)
+                         counters[loop.HISTORY_STEPS] > 0, g.positions, g.velocities,
+                         g.angular_velocities, g.orientations, g.accelerations,
+                         g.angular_accelerations, g.fixed, history)
 
     @numba.njit(_nrt=False)
     def t_part(reps, part, model, params, law, clock, g, w, p, pairs, counters, history,
                scratch):
         s = 0.0
         for _ in range(reps):
-            s += contact_forces(model, params, law, g[0], g[1], g[2], g[8], g[9], g[11],
-                                g[12], p[0], p[2], pairs[0], pairs[1], pairs[4], pairs[2],
-                                pairs[8], pairs[10], w[0], w[1], w[5], w[6], w[7], w[10],
-                                w[11], w[14], w[12], w[16], w[17], pairs[9], g[14],
-                                clock[loop.DT],
-                                scratch.size, part)[0]
+            s += contact_forces(model, params, law, g.positions, g.velocities,
+                                g.angular_velocities, g.radii, g.masses, g.materials, g.fixed,
+                                p.flag, p.length, pairs.start, pairs.partners,
+                                pairs.scratch_partners, pairs.history, pairs.force,
+                                pairs.torque_j, w.kind, w.geometry, w.offset, w.velocity,
+                                w.material, w.wall_start, w.wall_ids, w.scratch_wall_ids,
+                                w.wall_history, w.contact_force, w.contact_torque, pairs.own,
+                                g.max_overlap, clock[loop.DT], scratch.size, part)[0]
         return s
 
     @numba.njit(_nrt=False)
@@ -98,7 +101,7 @@ def main(argv):
             ("pair forces", t_pairs), ("wall forces", t_walls),
             ("all forces + wall sums", t_forces), ("gather + correct", t_after),
             ("gather + correct + drift", t_fused)]
-    print(f"N {sim.state.n}  threads {threads}  listed pairs {int(sim.pairs[0][-1])}  "
+    print(f"N {sim.state.n}  threads {threads}  listed pairs {int(sim.pairs.start[-1])}  "
           f"rebuilds {sim.rebuilds}")
     arrays = [a for a in _arrays(args) if a.flags.writeable]
     saved = [a.copy() for a in arrays]
@@ -111,7 +114,7 @@ def main(argv):
 
 
 def _arrays(item):
-    """The numpy arrays in a nest of tuples."""
+    """The numpy arrays in a nest of tuples (the bundles are namedtuples)."""
     if isinstance(item, np.ndarray):
         return [item]
     if isinstance(item, tuple):

@@ -60,7 +60,7 @@ def main(argv):
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     print(f"N {state.n} array_bytes_per_grain {sim.memory_bytes() / state.n:.0f} "
           f"peak_rss_MB {rss / 1e6:.0f} contacts_per_grain {coordination_number(sim):.3f} "
-          f"listed_pairs_per_grain {int(sim.pairs[0][-1]) / state.n:.3f}")
+          f"listed_pairs_per_grain {int(sim.pairs.start[-1]) / state.n:.3f}")
     if device:
         print(f"device_bytes_per_grain {sim._device.memory_bytes() / state.n:.0f}")
 

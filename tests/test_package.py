@@ -18,6 +18,23 @@ def test_import_compiles_nothing_and_is_fast():
     assert out[1] == "0"
 
 
+def test_warm_start_loads_the_cache():
+    """A second process running the time loop on the named bundles (engines/soft/
+    bundles.py) loads every compiled kernel from the disk cache: nothing is compiled."""
+    code = ("import graindyn as gd; from graindyn.engines.soft import loop; "
+            "st = gd.State.create([[0, 0, 1e-3], [0, 0, 3.5e-3]], [1e-3, 1e-3], 2650.0); "
+            "sim = gd.Simulation(st, [gd.Material(restitution=0.5)], "
+            "gd.ContactModel('hertz', 'tsuji', 'mindlin'), "
+            "walls=[gd.Plane((0, 0, 0), (0, 0, 1))]); sim.run(steps=20); "
+            "print(sum(sum(f.stats.cache_misses.values()) for f in (loop.run_chunk, "
+            "loop.relist)), sum(sum(f.stats.cache_hits.values()) for f in (loop.run_chunk, "
+            "loop.relist)))")
+    for _ in range(2):       # the first may fill the cache
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                             check=True).stdout.split()
+    assert out == ["0", "2"]
+
+
 def test_jit_flags_only_in_jit_module():
     for path in SRC.rglob("*.py"):
         if path.name == "_jit.py":

@@ -41,7 +41,7 @@ def random_velocities(n, dim, speed, rng):
 
 def listed_pairs(sim):
     """(i, j) arrays of the half neighbour list, in list order."""
-    start, partners = sim.pairs[0], sim.pairs[1]
+    start, partners = sim.pairs.start, sim.pairs.partners
     n = sim.state.n
     m = int(start[n])
     owner = np.repeat(np.arange(n), np.diff(start))
@@ -50,7 +50,7 @@ def listed_pairs(sim):
 
 def pair_index(sim, i, j):
     """Index k of pair (i, j), i < j, in the list (or -1)."""
-    start, partners = sim.pairs[0], sim.pairs[1]
+    start, partners = sim.pairs.start, sim.pairs.partners
     ks = np.nonzero(partners[start[i]:start[i + 1]] == j)[0]
     return int(start[i] + ks[0]) if ks.size else -1
 
@@ -172,23 +172,23 @@ def test_capacity_overflow_gives_identical_run():
     steps = 4000
     normal = _settling()
     normal.run(steps=steps)
-    assert int(normal.pairs[0][normal.state.n]) > 1
+    assert int(normal.pairs.start[normal.state.n]) > 1
 
     grown = _settling()
     grown._allocate_pairs(1)
     grown._allocate_walls(1)
     sizes = []
     grown.run(steps=steps, every=[(gd.Periodic(steps=50),
-                                   lambda s: sizes.append(s.pairs[1].size))])
-    assert grown.pairs[1].size > 1 and grown.wall_pairs[1].size > 1
+                                   lambda s: sizes.append(s.pairs.partners.size))])
+    assert grown.pairs.partners.size > 1 and grown.wall_pairs.ids.size > 1
     for name in ("positions", "velocities", "angular_velocities", "orientations", "forces"):
         np.testing.assert_array_equal(getattr(grown.state, name), getattr(normal.state, name))
     assert grown.rebuilds == normal.rebuilds
-    m = int(normal.pairs[0][normal.state.n])
-    np.testing.assert_array_equal(grown.pairs[0], normal.pairs[0])
-    np.testing.assert_array_equal(grown.pairs[1][:m], normal.pairs[1][:m])
-    np.testing.assert_array_equal(grown.pairs[2][:m], normal.pairs[2][:m])
-    assert np.any(grown.pairs[2][:m] != 0.0)             # springs were loaded
+    m = int(normal.pairs.start[normal.state.n])
+    np.testing.assert_array_equal(grown.pairs.start, normal.pairs.start)
+    np.testing.assert_array_equal(grown.pairs.partners[:m], normal.pairs.partners[:m])
+    np.testing.assert_array_equal(grown.pairs.history[:m], normal.pairs.history[:m])
+    assert np.any(grown.pairs.history[:m] != 0.0)        # springs were loaded
 
 
 def test_capacity_growth_mid_run_keeps_history():
@@ -197,14 +197,14 @@ def test_capacity_growth_mid_run_keeps_history():
     steps = 4000
     normal = _settling()
     normal.run(steps=1)
-    first = int(normal.pairs[0][normal.state.n])
+    first = int(normal.pairs.start[normal.state.n])
     normal.run(steps=steps - 1)
 
     grown = _settling()
     grown._allocate_pairs(first)
     sizes = []
     grown.run(steps=steps, every=[(gd.Periodic(steps=10),
-                                   lambda s: sizes.append(s.pairs[1].size))])
+                                   lambda s: sizes.append(s.pairs.partners.size))])
     assert sizes[0] == first and sizes[-1] > first, "no growth happened mid-run"
     for name in ("positions", "velocities", "angular_velocities"):
         np.testing.assert_array_equal(getattr(grown.state, name), getattr(normal.state, name))
@@ -280,10 +280,10 @@ def _pocket_run(skin, steps=3000, spoil_at=None):
         for i in range(3):
             k = pair_index(s, i, 3)
             assert k >= 0
-            hist.append(s.pairs[2][k, :3].copy())
+            hist.append(s.pairs.history[k, :3].copy())
         record.append(np.concatenate(hist))
         if spoil_at is not None and s.step == spoil_at:
-            s.pairs[2][:] = 0.0                           # what a lost history does
+            s.pairs.history[:] = 0.0                   # what a lost history does
 
     sim.run(steps=steps, every=[(gd.Periodic(steps=25), cb)])
     return sim, np.array(record)
@@ -538,9 +538,9 @@ def test_growing_the_pair_lists_mid_step_changes_nothing():
                             walls=gd.box((0, 0, 0), (3.9e-3, 3.9e-3, 10e-3)))
         if capacity:
             sim._allocate_pairs(capacity)
-        start = sim.pairs[1].size
+        start = sim.pairs.partners.size
         sim.run(steps=10000)
-        return sim, sim.pairs[1].size > start
+        return sim, sim.pairs.partners.size > start
 
     grown, did_grow = column(64)
     roomy, roomy_grew = column(5000)

@@ -27,9 +27,10 @@ MATERIAL = dict(youngs_modulus=1e7, restitution=0.7, kn=2e3, kt=1e3, friction_sl
 
 @numba.njit
 def one_by_one(model, params, g, periodic, p, dt):
-    for i in range(g[0].shape[0]):
-        pair_row(i, model, params, g[0], g[1], g[2], g[8], g[9], g[11], g[12], periodic[0],
-                 periodic[2], p[0], p[1], p[2], p[8], p[9], p[10], g[14], dt)
+    for i in range(g.positions.shape[0]):
+        pair_row(i, model, params, g.positions, g.velocities, g.angular_velocities, g.radii,
+                 g.masses, g.materials, g.fixed, periodic.flag, periodic.length, p.start,
+                 p.partners, p.history, p.force, p.own, p.torque_j, g.max_overlap, dt)
 
 
 def bed(model, walls=()):
@@ -43,24 +44,26 @@ def bed(model, walls=()):
     sim = gd.Simulation(state, materials, gd.ContactModel(*model), walls=walls, dt=1e-7,
                         allow_large_dt=True, overlap_limit=10.0)
     sim.run(steps=1)
-    m = int(sim.pairs[0][-1])
-    sim.pairs[2][:m] = rng.normal(scale=1e-6, size=sim.pairs[2][:m].shape) \
+    m = int(sim.pairs.start[-1])
+    sim.pairs.history[:m] = rng.normal(scale=1e-6, size=sim.pairs.history[:m].shape) \
         * (rng.random((m, 1)) < 0.6)
     return sim
 
 
 @numba.njit
 def walls_one_by_one(model, params, g, w, dt):
-    for i in range(g[0].shape[0]):
-        wall_row(i, model, params, g[0], g[1], g[2], g[8], g[9], g[11], w[0], w[1], w[5],
-                 w[6], w[7], w[10], w[11], w[12], w[16], w[17], g[14], dt)
+    for i in range(g.positions.shape[0]):
+        wall_row(i, model, params, g.positions, g.velocities, g.angular_velocities, g.radii,
+                 g.masses, g.materials, w.kind, w.geometry, w.offset, w.velocity, w.material,
+                 w.wall_start, w.wall_ids, w.wall_history, w.contact_force, w.contact_torque,
+                 g.max_overlap, dt)
 
 
 def totals(sim, own, force, torque_j, nblock):
     """Force and torque (N, 6) on each grain: own[i] plus, for each pair (i, j) whose j
     does not hold it (j in another block; nblock 0: never), -force and torque_j."""
     n = sim.state.n
-    start, partners = sim.pairs[0], sim.pairs[1]
+    start, partners = sim.pairs.start, sim.pairs.partners
     m = int(start[n])
     first = np.repeat(np.arange(n), np.diff(start))
     second = partners[:m].astype(np.int64)
@@ -79,9 +82,12 @@ def totals(sim, own, force, torque_j, nblock):
 def forces_args(sim, law):
     """contact_forces' arguments up to max_overlap, from a Simulation's arrays."""
     g, w, p, per = sim._grains(), sim._walls(), sim.pairs, sim._periodic()
-    return (sim.model_ids, sim.params, law, g[0], g[1], g[2], g[8], g[9], g[11], g[12],
-            per[0], per[2], p[0], p[1], p[4], p[2], p[8], p[10], w[0], w[1], w[5], w[6], w[7],
-            w[10], w[11], w[14], w[12], w[16], w[17], p[9], g[14])
+    return (sim.model_ids, sim.params, law, g.positions, g.velocities, g.angular_velocities,
+            g.radii, g.masses, g.materials, g.fixed, per.flag, per.length, p.start,
+            p.partners, p.scratch_partners, p.history, p.force, p.torque_j, w.kind,
+            w.geometry, w.offset, w.velocity, w.material, w.wall_start, w.wall_ids,
+            w.scratch_wall_ids, w.wall_history, w.contact_force, w.contact_torque, p.own,
+            g.max_overlap)
 
 
 def pairs_only(sim, law, nblock):
@@ -95,25 +101,28 @@ def test_batched_law_equals_contact_by_contact(model, one_thread):
     touching = len(sim.contacts()[0])
     assert touching > 300              # several batches of 128
     g, p, per = sim._grains(), sim.pairs, sim._periodic()
-    saved = [a.copy() for a in (p[2], p[8], p[9], p[10], g[14])]
+    kept = ("history", "force", "own", "torque_j")
+    saved = {k: getattr(p, k).copy() for k in kept}
+    saved_overlap = g.max_overlap.copy()
     nblock = 3
-    law = prepare((sim._law[0], *workspace(nblock, sim.history_size)), sim.params,
-                  p[1].size)
+    law = prepare(workspace(sim._law.address, nblock, sim.history_size), sim.params,
+                  p.partners.size)
     pairs_only(sim, law, nblock)
-    batched = [a.copy() for a in (p[2], p[8], p[9], p[10])]
-    deepest = g[14].max()            # kept by block (contacts.keep_worst)
-    for a, b in zip((p[2], p[8], p[9], p[10], g[14]), saved):
-        a[...] = b
+    batched = {k: getattr(p, k).copy() for k in kept}
+    deepest = g.max_overlap.max()            # kept by block (contacts.keep_worst)
+    for k in kept:
+        getattr(p, k)[...] = saved[k]
+    g.max_overlap[...] = saved_overlap
     one_by_one(sim.model_ids, sim.params, g, per, p, 1e-7)
-    for name, a, b in zip(("history", "force"), batched, (p[2], p[8])):
-        assert np.array_equal(a, b), name
-    assert deepest == g[14].max() > 0.0
-    assert np.count_nonzero(p[8]) > 0
-    mine = totals(sim, batched[2], batched[1], batched[3], nblock)
-    reference = totals(sim, p[9], p[8], p[10], 0)
+    for name in ("history", "force"):
+        assert np.array_equal(batched[name], getattr(p, name)), name
+    assert deepest == g.max_overlap.max() > 0.0
+    assert np.count_nonzero(p.force) > 0
+    mine = totals(sim, batched["own"], batched["force"], batched["torque_j"], nblock)
+    reference = totals(sim, p.own, p.force, p.torque_j, 0)
     scale = np.abs(reference).max(axis=0)
     assert np.all(np.abs(mine - reference) <= 1e-13 * scale)
-    assert not np.array_equal(batched[2], p[9])    # the CPU did add pairs to both grains
+    assert not np.array_equal(batched["own"], p.own)  # the CPU did add pairs to both grains
 
 
 def test_open_pair_with_only_a_stale_torque_is_cleared(one_thread):
@@ -123,21 +132,21 @@ def test_open_pair_with_only_a_stale_torque_is_cleared(one_thread):
     must clear it, or the gather adds it to a grain of another block."""
     sim = bed(("hooke", "linear", "cundall_strack"))
     g, p, per = sim._grains(), sim.pairs, sim._periodic()
-    n, start, partners = sim.state.n, p[0], p[1]
+    n, start, partners = sim.state.n, p.start, p.partners
     nblock = 2
     first = np.repeat(np.arange(n), np.diff(start))
     m = int(start[n])
-    separation = np.linalg.norm(g[0][first] - g[0][partners[:m]], axis=1)
-    open_ = separation > g[8][first] + g[8][partners[:m]]
+    separation = np.linalg.norm(g.positions[first] - g.positions[partners[:m]], axis=1)
+    open_ = separation > g.radii[first] + g.radii[partners[:m]]
     cross = (first < n // 2) & (partners[:m] >= n // 2)
     k = int(np.flatnonzero(open_ & cross)[0])
-    p[2][k] = 0.0
-    p[8][k] = 0.0
-    p[10][k] = (1e-9, 2e-9, 3e-9)
-    law = prepare((sim._law[0], *workspace(nblock, sim.history_size)), sim.params,
-                  p[1].size)
+    p.history[k] = 0.0
+    p.force[k] = 0.0
+    p.torque_j[k] = (1e-9, 2e-9, 3e-9)
+    law = prepare(workspace(sim._law.address, nblock, sim.history_size), sim.params,
+                  p.partners.size)
     pairs_only(sim, law, nblock)
-    assert np.all(p[10][k] == 0.0)
+    assert np.all(p.torque_j[k] == 0.0)
 
 
 @pytest.mark.parametrize("model", MODELS[:3], ids=lambda m: ",".join(m))
@@ -150,28 +159,33 @@ def test_batched_walls_equal_contact_by_contact(model, one_thread):
     sim.walls.velocity[:] = np.random.default_rng(5).normal(scale=0.05,
                                                             size=sim.walls.velocity.shape)
     g, w = sim._grains(), sim._walls()
-    m = int(w[10][-1])
-    w[12][:m] = np.random.default_rng(4).normal(scale=1e-6, size=w[12][:m].shape)
-    saved = [a.copy() for a in (w[12], w[16], w[17], g[14])]
+    m = int(w.wall_start[-1])
+    w.wall_history[:m] = np.random.default_rng(4).normal(scale=1e-6,
+                                                         size=w.wall_history[:m].shape)
+    kept = ("wall_history", "contact_force", "contact_torque")
+    saved = {k: getattr(w, k).copy() for k in kept}
+    saved_overlap = g.max_overlap.copy()
     touching = len(sim.wall_contacts().grain)
     assert touching > 150               # two batches and more
-    own = sim.pairs[9]
+    own = sim.pairs.own
     own[...] = np.random.default_rng(6).normal(size=own.shape)
     own_before = own.copy()
     contact_forces(*forces_args(sim, sim._law), 1e-7, sim.block_scratch.size, WALLS)
-    batched = [a.copy() for a in (w[12], w[16], w[17], g[14])]
-    for a, b in zip((w[12], w[16], w[17], g[14]), saved):
-        a[...] = b
+    batched = {k: getattr(w, k).copy() for k in kept}
+    batched_overlap = g.max_overlap.copy()
+    for k in kept:
+        getattr(w, k)[...] = saved[k]
+    g.max_overlap[...] = saved_overlap
     walls_one_by_one(sim.model_ids, sim.params, g, w, 1e-7)
-    for name, a, b in zip(("history", "force", "torque"), batched, (w[12], w[16], w[17])):
-        assert np.array_equal(a, b), name
-    assert batched[3].max() == g[14].max() > 0.0    # by block, by grain: one maximum
-    assert np.count_nonzero(w[16]) > 0
+    for name in kept:
+        assert np.array_equal(batched[name], getattr(w, name)), name
+    assert batched_overlap.max() == g.max_overlap.max() > 0.0  # by block, by grain: one maximum
+    assert np.count_nonzero(w.contact_force) > 0
     # and added to their grains' sums, after what was there
-    grain = np.repeat(np.arange(sim.state.n), np.diff(w[10]))
+    grain = np.repeat(np.arange(sim.state.n), np.diff(w.wall_start))
     added = own_before.copy()
     for q, i in enumerate(grain):
-        added[i] += np.concatenate((batched[1][q], batched[2][q]))
+        added[i] += np.concatenate((batched["contact_force"][q], batched["contact_torque"][q]))
     assert np.array_equal(own, added)
 
 
@@ -196,7 +210,7 @@ def test_workspace_rows_start_on_cache_lines():
     boundary, so the law loop's 512-bit accesses never straddle two cache lines."""
     from graindyn.engines.soft.law_loop import STRIDE
     for blocks in (1, 3, 7):
-        work = workspace(blocks, 4)[0]
+        work = workspace(0, blocks, 4).work
         assert work.flags.c_contiguous and not work.any()
         for b in range(blocks):
             assert work[b].ctypes.data % 64 == 0
@@ -214,8 +228,8 @@ def test_grains_of_the_walks_are_refilled_before_every_chunk(one_thread):
         sim = bed(("hertz", "tsuji", "mindlin"), walls)
         sim.run(steps=20)
         if scribble:
-            sim.pairs[4][:] = 0
-            sim.wall_pairs[4][:] = 0
+            sim.pairs.scratch_partners[:] = 0
+            sim.wall_pairs.scratch_ids[:] = 0
         sim.run(steps=20)
         runs.append(sim)
     clean, scribbled = runs

@@ -31,24 +31,26 @@ def make():
 
 def cpu_rebuild(sim):
     while True:
-        p, w = sim.pairs, sim.wall_pairs
+        p, w, per = sim.pairs, sim.wall_pairs, sim._periodic()
         needed, wall_needed = rebuild(
-            sim.state.positions, sim.state.radii, sim.clock[loop.SKIN], *sim._periodic(),
-            *p[:8], sim.walls.kind, sim.walls.geometry, sim.walls.offset, *w[:6],
-            sim.reference_positions, sim.reference_offset)
-        if needed <= p[1].size and wall_needed <= w[1].size:
+            sim.state.positions, sim.state.radii, sim.clock[loop.SKIN], per.flag, per.lo,
+            per.length, p.start, p.partners, p.history, p.scratch_start, p.scratch_partners,
+            p.scratch_history, p.reverse_start, p.reverse_pairs, sim.walls.kind,
+            sim.walls.geometry, sim.walls.offset, w.start, w.ids, w.history, w.scratch_start,
+            w.scratch_ids, w.scratch_history, sim.reference_positions, sim.reference_offset)
+        if needed <= p.partners.size and wall_needed <= w.ids.size:
             return
-        if needed > p[1].size:
+        if needed > p.partners.size:
             sim._allocate_pairs(int(1.3 * needed) + 64)
-        if wall_needed > w[1].size:
+        if wall_needed > w.ids.size:
             sim._allocate_walls(int(1.3 * wall_needed) + 16)
 
 
 def lists(sim):
     p, w = sim.pairs, sim.wall_pairs
-    m, mw = int(p[0][-1]), int(w[0][-1])
-    return [p[0], p[1][:m], p[2][:m], p[6], p[7][:m], w[0], w[1][:mw], w[2][:mw],
-            sim.state.positions, sim.reference_positions]
+    m, mw = int(p.start[-1]), int(w.start[-1])
+    return [p.start, p.partners[:m], p.history[:m], p.reverse_start, p.reverse_pairs[:m],
+            w.start, w.ids[:mw], w.history[:mw], sim.state.positions, sim.reference_positions]
 
 
 def compare(a, b):
@@ -63,16 +65,17 @@ def main():
     device._rebuild(np.ones(1, np.int64))
     device._download()
     first = compare(lists(cpu), lists(gpu))
-    grown = [int(cpu.pairs[1].size), int(gpu.pairs[1].size)]
+    grown = [int(cpu.pairs.partners.size), int(gpu.pairs.partners.size)]
     rng = np.random.default_rng(8)
     shift = rng.normal(scale=1e-4, size=(300, 3))
     for sim in (cpu, gpu):
         sim.state.positions[:] += shift
-        m = int(sim.pairs[0][-1])
-        sim.pairs[2][:m] = np.arange(m * sim.pairs[2].shape[1]).reshape(m, sim.pairs[2].shape[1])
-        mw = int(sim.wall_pairs[0][-1])
-        sim.wall_pairs[2][:mw] = -np.arange(mw * sim.wall_pairs[2].shape[1]).reshape(
-            mw, sim.wall_pairs[2].shape[1])
+        history, wall_history = sim.pairs.history, sim.wall_pairs.history
+        m = int(sim.pairs.start[-1])
+        history[:m] = np.arange(m * history.shape[1]).reshape(m, history.shape[1])
+        mw = int(sim.wall_pairs.start[-1])
+        wall_history[:mw] = -np.arange(mw * wall_history.shape[1]).reshape(
+            mw, wall_history.shape[1])
     cpu_rebuild(cpu)
     device._upload()
     device._rebuild(np.ones(1, np.int64))
@@ -82,9 +85,10 @@ def main():
     values = rng.integers(0, 5, 1000)
     a = cuda.to_device(values)
     device.lists.scan(a)
-    print(json.dumps({"first": first, "second": second, "pairs": int(cpu.pairs[0][-1]),
-                      "walls": int(cpu.wall_pairs[0][-1]), "capacity": grown,
-                      "carried": int(np.count_nonzero(cpu.pairs[2][:int(cpu.pairs[0][-1])])),
+    m = int(cpu.pairs.start[-1])
+    print(json.dumps({"first": first, "second": second, "pairs": m,
+                      "walls": int(cpu.wall_pairs.start[-1]), "capacity": grown,
+                      "carried": int(np.count_nonzero(cpu.pairs.history[:m])),
                       "scan": bool(np.array_equal(a.copy_to_host(), np.cumsum(values)))}))
 
 

@@ -50,7 +50,7 @@ def main(steps, model, integrator):
     for name in ("positions", "velocities", "angular_velocities", "orientations"):
         a, b = getattr(cpu.state, name), getattr(gpu.state, name)
         out[name] = float(np.abs(a - b).max() / np.abs(a).max())
-    out["history"] = float(np.abs(cpu.pairs[2] - gpu.pairs[2]).max())
+    out["history"] = float(np.abs(cpu.pairs.history - gpu.pairs.history).max())
     out["wall_force"] = float(np.abs(cpu.walls.force - gpu.walls.force).max())
     print(json.dumps(out))
 

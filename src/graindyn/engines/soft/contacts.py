@@ -520,9 +520,9 @@ def contact_forces(model, params, law, positions, velocities, angular_velocities
 
     owner[k], wall_owner[q] : the grain of pair k that lists it, of wall candidate q
     (neighbors.list_owners).
-    law : (address of the law loop (law_loop.law_address), workspaces (nblock, ...),
-    slots (nblock, 3, CAP), dirty (one byte per pair slot), energies (nblock, 2):
-    law_loop.workspace).
+    law : bundles.LawWorkspace (law_loop.workspace): the address of the law loop
+    (law_loop.law_address), workspaces (nblock, ...), slots (nblock, 3, CAP), dirty
+    (one byte per pair slot), energies (nblock, 2).
     pair_force[k] [N] is the force on the first grain i of pair k and pair_torque_j[k]
     [N m] the torque on its second grain j when j is in another block; own[i] (6) is
     the sum of the forces and torques on i of the pairs it lists, of the pairs of its
@@ -535,7 +535,7 @@ def contact_forces(model, params, law, positions, velocities, angular_velocities
     ``nblock`` fixed blocks of grains (block_count) in block order.
     """
     n = positions.shape[0]
-    address, work, slots, dirty, sums = law
+    address, work, slots, dirty, sums = law.address, law.work, law.slots, law.dirty, law.sums
     if nblock == 1:    # no parallel region to enter (a few us per call); a plain int64 0
         return _contact_block(
             np.int64(0), n, parts, address, work[0], slots[0], dirty, model, params,

@@ -41,11 +41,13 @@ def _elastic(model, params, positions, radii, materials, periodic_flag, periodic
 
 def elastic_energy(model_ids, params, state, walls, pairs, wall_pairs):
     """Energy stored in the normal and tangential springs of all listed contacts [J]
-    (physics.contact.contact_energy of each touching pair and wall contact)."""
+    (physics.contact.contact_energy of each touching pair and wall contact); pairs and
+    wall_pairs : bundles.Pairs and WallPairs (Simulation.pairs, wall_pairs)."""
     return float(_elastic(model_ids, params, state.positions, state.radii, state.materials,
-                          walls.periodic_flag, walls.periodic_length, pairs[0], pairs[1],
-                          pairs[2], walls.kind, walls.geometry, walls.offset, walls.material,
-                          wall_pairs[0], wall_pairs[1], wall_pairs[2]))
+                          walls.periodic_flag, walls.periodic_length, pairs.start,
+                          pairs.partners, pairs.history, walls.kind, walls.geometry,
+                          walls.offset, walls.material, wall_pairs.start, wall_pairs.ids,
+                          wall_pairs.history))
 
 
 def kinetic_energy(state):

@@ -30,6 +30,7 @@ from numba.extending import intrinsic
 from ..._jit import callback, kernel, retarget, scalar
 from ...physics.contact import contact_force
 from ...physics.registry import COL
+from .bundles import LawWorkspace
 from .response import contact_geometry, contact_response
 
 CAP = 64              # contacts per batch (workspace columns)
@@ -253,15 +254,18 @@ def call_law(typingctx, address, workspace, count, dt, pairs):
     return sig, codegen
 
 
-def workspace(blocks, history_size):
-    """Scratch of the law loop for ``blocks`` blocks of grains: workspaces (blocks,
-    rows * STRIDE), the pair, first and second grain of each column (blocks, 3, CAP),
-    the pair loop's dirty flags (one byte per pair slot, sized by ``prepare``) and the
-    energies each block dissipated (blocks, 2)."""
+def workspace(address, blocks, history_size):
+    """The law bundle (bundles.LawWorkspace) of the law loop at ``address``
+    (law_address) for ``blocks`` blocks of grains: workspaces (blocks, rows * STRIDE),
+    the pair, first and second grain of each column (blocks, 3, CAP), the pair loop's
+    dirty flags (one byte per pair slot, sized by ``prepare``) and the energies each
+    block dissipated (blocks, 2)."""
     if history_size > MAX_HISTORY:
         raise ValueError(f"a model keeps at most {MAX_HISTORY} history values")
-    return (_aligned_zeros((blocks, workspace_rows(history_size) * STRIDE)),
-            np.zeros((blocks, 3, CAP), np.int64), np.ones(0, np.uint8), np.zeros((blocks, 2)))
+    return LawWorkspace(address=address,
+                        work=_aligned_zeros((blocks, workspace_rows(history_size) * STRIDE)),
+                        slots=np.zeros((blocks, 3, CAP), np.int64),
+                        dirty=np.ones(0, np.uint8), sums=np.zeros((blocks, 2)))
 
 
 def _aligned_zeros(shape):
@@ -275,16 +279,15 @@ def _aligned_zeros(shape):
 
 
 def prepare(law, params, pair_capacity):
-    """The law tuple (address, work, slots, dirty, energies) made ready for a chunk: with a single
+    """The law bundle (bundles.LawWorkspace) made ready for a chunk: with a single
     material, its pair-table row in every column of the workspaces (the pair loop then
     does not copy it for every contact; the table may have changed between runs), and
     every pair slot marked dirty (its force and history may be non-zero: the lists
     may have been rebuilt or the arrays replaced since the last chunk)."""
-    address, work, slots, dirty, sums = law
     if params.shape[0] == 1:
-        rows = work.reshape(work.shape[0], -1, STRIDE)
+        rows = law.work.reshape(law.work.shape[0], -1, STRIDE)
         rows[:, PARAMS:PARAMS + params.shape[2], :] = params[0, 0, :, None]
-    if dirty.size != pair_capacity:
-        dirty = np.ones(pair_capacity, np.uint8)
-    dirty[:] = 1
-    return address, work, slots, dirty, sums
+    if law.dirty.size != pair_capacity:
+        law = law._replace(dirty=np.ones(pair_capacity, np.uint8))
+    law.dirty[:] = 1
+    return law

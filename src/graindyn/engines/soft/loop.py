@@ -16,6 +16,10 @@ One step (the order is fixed here and nowhere else):
 The first step of a run first builds the lists and evaluates the forces at the start.
 Dissipated energies and the work of moving walls are accumulated in ``clock``.
 
+The kernels take their arrays in the named bundles of engines/soft/bundles.py (grains:
+Grains, pairs: Pairs, walls: WallBundle, periodic: PeriodicBox, law: LawWorkspace) and
+read them by field name (``grains.radii``, ``walls.offset``).
+
 run_chunk and what it calls every step are compiled without reference counting
 (_jit.driver): with it, each call into a pass counted every array of the bundles in
 and out, about 2.3 us per step whatever the number of grains (BENCHMARKS.md).  They
@@ -61,25 +65,24 @@ def evaluate_forces(model, params, law, grains, pairs, walls, periodic, gravity,
     """All contact forces and the total force on each wall; returns the (normal,
     tangential) energy dissipated [J] and the power of the walls on the grains [W].
     law: the batched law of the contacts (contacts.contact_forces);
-    nblock: blocks of grains handed to threads (contacts.block_count)."""
-    (positions, velocities, angular_velocities, orientations, forces, torques, accelerations,
-     angular_accelerations, radii, masses, inertias, materials, fixed, reference_positions,
-     max_overlap) = grains
-    (start, partners, history, scratch_start, scratch_partners, scratch_history,
-     reverse_start, reverse_pairs, pair_force, own, pair_torque_j) = pairs
-    (kind, geometry, motion_kind, motion, base, offset, velocity, material, force,
-     reference_offset, wall_start, wall_ids, wall_history, scratch_wall_start,
-     scratch_wall_ids, scratch_wall_history, contact_force, contact_torque) = walls
-    flag, lo, length = periodic
-    dn, dt_ = contact_forces(model, params, law, positions, velocities, angular_velocities,
-                             radii, masses, materials, fixed, flag, length, start, partners,
-                             scratch_partners, history, pair_force, pair_torque_j, kind, geometry,
-                             offset, velocity, material, wall_start, wall_ids, scratch_wall_ids,
-                             wall_history, contact_force, contact_torque, own, max_overlap, dt,
-                             nblock, np.int64(PAIRS | WALLS))
+    nblock: blocks of grains handed to threads (contacts.block_count).  The owners of
+    the pairs and wall candidates are the lists' scratch_partners and scratch_wall_ids
+    (neighbors.list_owners)."""
+    dn, dt_ = contact_forces(model, params, law, grains.positions, grains.velocities,
+                             grains.angular_velocities, grains.radii, grains.masses,
+                             grains.materials, grains.fixed, periodic.flag, periodic.length,
+                             pairs.start, pairs.partners, pairs.scratch_partners,
+                             pairs.history, pairs.force, pairs.torque_j, walls.kind,
+                             walls.geometry, walls.offset, walls.velocity, walls.material,
+                             walls.wall_start, walls.wall_ids, walls.scratch_wall_ids,
+                             walls.wall_history, walls.contact_force, walls.contact_torque,
+                             pairs.own, grains.max_overlap, dt, nblock,
+                             np.int64(PAIRS | WALLS))
+    force, contact_force, velocity, wall_ids = \
+        walls.force, walls.contact_force, walls.velocity, walls.wall_ids
     force[:] = 0.0
     power = 0.0
-    for q in range(wall_start[masses.size]):       # every candidate, in grain order
+    for q in range(walls.wall_start[grains.masses.size]):   # every candidate, in grain order
         w = wall_ids[q]
         for d in range(3):
             force[w, d] -= contact_force[q, d]
@@ -147,9 +150,9 @@ def verdict(finite, worst, speed2, kinetic, potential, kind, clock):
 @driver
 def _checks(grains, counters, clock):
     """NaN, overlap and stop-condition checks (``verdict``); returns a status code."""
-    (positions, velocities, angular_velocities, orientations, forces, torques, accelerations,
-     angular_accelerations, radii, masses, inertias, materials, fixed, reference_positions,
-     max_overlap) = grains
+    positions, velocities, forces, masses, fixed, max_overlap = \
+        grains.positions, grains.velocities, grains.forces, grains.masses, grains.fixed, \
+        grains.max_overlap
     vmax = 0.0
     for i in range(masses.size):
         v2 = 0.0
@@ -165,8 +168,8 @@ def _checks(grains, counters, clock):
     kind = counters[COND_KIND]
     kinetic = potential = 0.0
     if kind == ENERGY_RATIO_BELOW and worst <= clock[OVERLAP_LIMIT]:
-        kinetic, potential = _energies(velocities, angular_velocities, positions, masses,
-                                       inertias, fixed, clock[GX:GZ + 1])
+        kinetic, potential = _energies(velocities, grains.angular_velocities, positions,
+                                       masses, grains.inertias, fixed, clock[GX:GZ + 1])
     return verdict(True, worst, vmax, kinetic, potential, kind, clock)
 
 
@@ -192,14 +195,13 @@ def rebuild_due(clock, offset, reference_offset, velocity):
 def _after(integrator, stage, dt, counters, gravity, grains, pairs, periodic,
            integrator_history, block_scratch, drift_next):
     """integrators.after_force with the arrays it needs taken out of the bundles."""
-    (positions, velocities, angular_velocities, orientations, forces, torques, accelerations,
-     angular_accelerations, radii, masses, inertias, materials, fixed, reference_positions,
-     max_overlap) = grains
     return after_force(integrator, stage, dt, counters[HISTORY_STEPS] > 0, counters[DIM],
-                       gravity, pairs, forces, torques, masses, inertias, positions,
-                       reference_positions, velocities, angular_velocities, orientations,
-                       accelerations, angular_accelerations, fixed, periodic[0], periodic[2],
-                       integrator_history, block_scratch, drift_next)
+                       gravity, pairs, grains.forces, grains.torques, grains.masses,
+                       grains.inertias, grains.positions, grains.reference_positions,
+                       grains.velocities, grains.angular_velocities, grains.orientations,
+                       grains.accelerations, grains.angular_accelerations, grains.fixed,
+                       periodic.flag, periodic.length, integrator_history, block_scratch,
+                       drift_next)
 
 
 @kernel
@@ -207,27 +209,22 @@ def relist(grains, pairs, walls, periodic, clock, counters, law):
     """Rebuild the neighbour lists (run_chunk returned RELIST); returns DONE (and
     counters[FORCE_REBUILD] = RELISTED), NAN (non-finite positions) or GROW (capacity
     short: counters say how much is needed, nothing has changed)."""
-    positions = grains[0]
-    if not _all_finite(positions):
+    if not _all_finite(grains.positions):
         return NAN
-    (start, partners, history, scratch_start, scratch_partners, scratch_history,
-     reverse_start, reverse_pairs, pair_force, own, pair_torque_j) = pairs
-    (kind, geometry, motion_kind, motion, base, offset, velocity, material, force,
-     reference_offset, wall_start, wall_ids, wall_history, scratch_wall_start,
-     scratch_wall_ids, scratch_wall_history, contact_force, contact_torque) = walls
-    flag, lo, length = periodic
     needed, wall_needed = rebuild(
-        positions, grains[8], clock[SKIN], flag, lo, length, start, partners, history,
-        scratch_start, scratch_partners, scratch_history, reverse_start, reverse_pairs, kind,
-        geometry, offset, wall_start, wall_ids, wall_history, scratch_wall_start,
-        scratch_wall_ids, scratch_wall_history, grains[13], reference_offset)
-    if needed > partners.size or wall_needed > wall_ids.size:
+        grains.positions, grains.radii, clock[SKIN], periodic.flag, periodic.lo,
+        periodic.length, pairs.start, pairs.partners, pairs.history, pairs.scratch_start,
+        pairs.scratch_partners, pairs.scratch_history, pairs.reverse_start,
+        pairs.reverse_pairs, walls.kind, walls.geometry, walls.offset, walls.wall_start,
+        walls.wall_ids, walls.wall_history, walls.scratch_wall_start, walls.scratch_wall_ids,
+        walls.scratch_wall_history, grains.reference_positions, walls.reference_offset)
+    if needed > pairs.partners.size or wall_needed > walls.wall_ids.size:
         counters[NEED_PAIRS] = needed
         counters[NEED_WALLS] = wall_needed
         return GROW
     counters[FORCE_REBUILD] = RELISTED
     counters[REBUILDS] += 1
-    law[3][:] = 1          # new pair slots: every one may hold force or history
+    law.dirty[:] = 1       # new pair slots: every one may hold force or history
     return DONE
 
 
@@ -238,8 +235,9 @@ def _lists_ready(clock, counters, walls):
     if counters[FORCE_REBUILD] == RELISTED:
         counters[FORCE_REBUILD] = 0
         return True
-    return counters[FORCE_REBUILD] == 0 and not rebuild_due(clock, walls[5], walls[9],
-                                                            walls[6])
+    return counters[FORCE_REBUILD] == 0 and not rebuild_due(clock, walls.offset,
+                                                            walls.reference_offset,
+                                                            walls.velocity)
 
 
 @driver
@@ -249,12 +247,6 @@ def run_chunk(model, params, law, grains, pairs, walls, periodic, clock, counter
     step ``done`` is under way: call relist, then run_chunk for the steps left.
     integrator_history : (slots, N, 3) the integrator's own per-grain history
     (integrators/ids.py)."""
-    (positions, velocities, angular_velocities, orientations, forces, torques, accelerations,
-     angular_accelerations, radii, masses, inertias, materials, fixed, reference_positions,
-     max_overlap) = grains
-    (kind, geometry, motion_kind, motion, base, offset, velocity, material, force,
-     reference_offset, wall_start, wall_ids, wall_history, scratch_wall_start,
-     scratch_wall_ids, scratch_wall_history, contact_force, contact_torque) = walls
     dt = clock[DT]
     gravity = clock[GX:GZ + 1]
     integrator = counters[INTEGRATOR]
@@ -272,20 +264,21 @@ def run_chunk(model, params, law, grains, pairs, walls, periodic, clock, counter
                                  pairs, periodic, integrator_history, block_scratch, s < 0)
             counters[PRIMED] = 1
             # grains that start too deep in each other or in a wall: stop before moving
-            if largest(max_overlap) > clock[OVERLAP_LIMIT]:
+            if largest(grains.max_overlap) > clock[OVERLAP_LIMIT]:
                 return OVERLAP, s
         last = STAGES[integrator] - 1
         for stage in range(last + 1):
             if not drifted:
-                before_force(integrator, stage, dt, counters[HISTORY_STEPS] > 0, positions,
-                             velocities, angular_velocities, orientations, accelerations,
-                             angular_accelerations, fixed, integrator_history)
+                before_force(integrator, stage, dt, counters[HISTORY_STEPS] > 0,
+                             grains.positions, grains.velocities, grains.angular_velocities,
+                             grains.orientations, grains.accelerations,
+                             grains.angular_accelerations, grains.fixed, integrator_history)
             drifted = False
             if stage == 0:
                 if not _lists_ready(clock, counters, walls):
                     return RELIST, s
-                walls_advance(motion_kind, motion, base, offset, velocity, force, clock[TIME],
-                              dt)
+                walls_advance(walls.motion_kind, walls.motion, walls.base, walls.offset,
+                              walls.velocity, walls.force, clock[TIME], dt)
             # each force evaluation stands for its share of the step (the optimized
             # velocity Verlet kicks h/2 twice): contact-history increments, dissipation
             # and wall work advance by that share, not by the whole step

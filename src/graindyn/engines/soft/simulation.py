@@ -10,25 +10,22 @@ import math
 import numba
 import numpy as np
 
-from ...core.engine import Contacts, WallContacts
+from ...core.engine import Contacts, OverlapError, SimulationError, WallContacts
 from ...core.neighbors import list_owners
 from ...core.species import ContactModel, Material
-from ...core.triggers import NO_CONDITION, Periodic
+from ...core.triggers import NO_CONDITION, pauses
 from ...core.walls import FIXED, Motion, Walls
 from . import energy, loop
+from .bundles import Grains, Pairs, PeriodicBox, WallPairs, wall_bundle
 from .contacts import block_count
 from .integrators import SCHEMES, SLOTS, history_names, integrator_id
 from .law_loop import law_address, prepare, workspace as law_workspace
 from .timestep import time_step_report
 
 
-_PAIR_ARRAYS = ("start", "partners", "history", "scratch_start", "scratch_partners",
-                "scratch_history", "reverse_start", "reverse_pairs", "force", "own",
-                "torque_j")
-# rewritten by every force evaluation before it is read: not part of a snapshot
+# the lists' arrays are checkpointed by their field names (bundles.Pairs, WallPairs):
+# "pairs/start", "wall_contacts/ids"...; rewritten by every force evaluation before it is read: not part of a snapshot
 _TRANSIENT = ("pairs/own",)
-_WALL_CONTACT_ARRAYS = ("start", "ids", "history", "scratch_start", "scratch_ids",
-                        "scratch_history", "force", "torque")
 
 
 # the orientations the loop sees when they are not followed (passes.turn)
@@ -46,22 +43,13 @@ def _gravity(value, dim):
     return gravity
 
 
-class SimulationError(RuntimeError):
-    """A run stopped because the physics broke down (NaN, excessive overlap)."""
-
-
-class OverlapError(SimulationError):
-    """Some overlap exceeded ``overlap_limit`` of the smaller radius: the state is finite,
-    but the load is beyond what the contact law describes."""
-
-
 class Simulation:
     """A soft-particle DEM simulation (SI units), the soft engine of core/engine.py:
     protocols, analysis and outputs use it through that interface (state, walls, time,
     gravity, run, contacts, wall_contacts, energies, snapshot/restore, relocate,
     set_motion, set_servo, place_wall); ``steps=`` runs, ``dt``, ``step`` and the
     kernel arrays (``pairs``, ``wall_pairs``: the neighbour and wall-contact lists,
-    ``clock``, ``counters``) are its own.
+    bundles.Pairs and WallPairs, arrays by name; ``clock``, ``counters``) are its own.
 
     state : State;  materials : list of Material (grain and wall materials by index)
     model : ContactModel;  walls : list of Plane/Cylinder;  periodic : list of Periodic
@@ -171,31 +159,38 @@ class Simulation:
         negative-index wraparound on every array access in the contact loops."""
         n, h = self.state.n, self.history_size
         old = getattr(self, "pairs", None)
-        start = old[0] if old is not None else np.zeros(n + 1, np.int64)
+        start = old.start if old is not None else np.zeros(n + 1, np.int64)
         partners = np.zeros(capacity, np.uint32)
         history = np.zeros((capacity, h))
         if old is not None:
-            m = int(old[0][n])
-            partners[:m] = old[1][:m]
-            history[:m] = old[2][:m]
-        self.pairs = (start, partners, history, np.zeros(n + 1, np.int64),
-                      np.zeros(capacity, np.uint32), np.zeros((capacity, h)),
-                      np.zeros(n + 1, np.int64), np.zeros(capacity, np.uint32),
-                      np.zeros((capacity, 3)), np.zeros((n, 6)), np.zeros((capacity, 3)))
+            m = int(old.start[n])
+            partners[:m] = old.partners[:m]
+            history[:m] = old.history[:m]
+        self.pairs = Pairs(start=start, partners=partners, history=history,
+                           scratch_start=np.zeros(n + 1, np.int64),
+                           scratch_partners=np.zeros(capacity, np.uint32),
+                           scratch_history=np.zeros((capacity, h)),
+                           reverse_start=np.zeros(n + 1, np.int64),
+                           reverse_pairs=np.zeros(capacity, np.uint32),
+                           force=np.zeros((capacity, 3)), own=np.zeros((n, 6)),
+                           torque_j=np.zeros((capacity, 3)))
 
     def _allocate_walls(self, capacity):
         n, h, w = self.state.n, self.history_size, self.walls
         old = getattr(self, "wall_pairs", None)
-        start = old[0] if old is not None else np.zeros(n + 1, np.int64)
+        start = old.start if old is not None else np.zeros(n + 1, np.int64)
         ids = np.zeros(capacity, np.uint32)
         history = np.zeros((capacity, h))
         if old is not None:
-            m = int(old[0][n])
-            ids[:m] = old[1][:m]
-            history[:m] = old[2][:m]
-        self.wall_pairs = (start, ids, history, np.zeros(n + 1, np.int64),
-                           np.zeros(capacity, np.uint32), np.zeros((capacity, h)),
-                           np.zeros((capacity, 3)), np.zeros((capacity, 3)))
+            m = int(old.start[n])
+            ids[:m] = old.ids[:m]
+            history[:m] = old.history[:m]
+        self.wall_pairs = WallPairs(start=start, ids=ids, history=history,
+                                    scratch_start=np.zeros(n + 1, np.int64),
+                                    scratch_ids=np.zeros(capacity, np.uint32),
+                                    scratch_history=np.zeros((capacity, h)),
+                                    force=np.zeros((capacity, 3)),
+                                    torque=np.zeros((capacity, 3)))
         self.reference_offset = w.offset.copy()
 
     def _allocate_integrator(self):
@@ -233,21 +228,25 @@ class Simulation:
             self.integrator_history[...] = derivatives
 
     def _grains(self):
+        """The grains as the kernels see them (bundles.Grains)."""
         s = self.state
-        turned = s.orientations if self.orientations else _NOT_TURNED
-        return (s.positions, s.velocities, s.angular_velocities, turned, s.forces,
-                s.torques, s.accelerations, s.angular_accelerations, s.radii, s.masses,
-                s.inertias, s.materials, s.fixed, self.reference_positions, self.max_overlap)
+        return Grains(positions=s.positions, velocities=s.velocities,
+                      angular_velocities=s.angular_velocities,
+                      orientations=s.orientations if self.orientations else _NOT_TURNED,
+                      forces=s.forces, torques=s.torques, accelerations=s.accelerations,
+                      angular_accelerations=s.angular_accelerations, radii=s.radii,
+                      masses=s.masses, inertias=s.inertias, materials=s.materials,
+                      fixed=s.fixed, reference_positions=self.reference_positions,
+                      max_overlap=self.max_overlap)
 
     def _walls(self):
-        w, c = self.walls, self.wall_pairs
-        return (w.kind, w.geometry, w.motion_kind, w.motion, w.base, w.offset, w.velocity,
-                w.material, w.force, self.reference_offset, c[0], c[1], c[2], c[3], c[4],
-                c[5], c[6], c[7])
+        """The walls and their contact list as the kernels see them (bundles.WallBundle)."""
+        return wall_bundle(self.walls, self.reference_offset, self.wall_pairs)
 
     def _periodic(self):
+        """The periodic directions (bundles.PeriodicBox)."""
         w = self.walls
-        return (w.periodic_flag, w.periodic_lo, w.periodic_length)
+        return PeriodicBox(flag=w.periodic_flag, lo=w.periodic_lo, length=w.periodic_length)
 
     # ------------------------------------------------------------------ running
     @property
@@ -302,13 +301,13 @@ class Simulation:
         blocks = block_count(self.state.n, numba.get_num_threads())
         if self.block_scratch.size != blocks or self._law is None:  # first, or new threads
             self.block_scratch = np.zeros(blocks)
-            self._law = (law_address(self.model_ids), *law_workspace(blocks, self.history_size))
+            self._law = law_workspace(law_address(self.model_ids), blocks, self.history_size)
         total = 0
         while True:
-            self._law = prepare(self._law, self.params, self.pairs[1].size)
+            self._law = prepare(self._law, self.params, self.pairs.partners.size)
             # the grains of the pair and wall walks (kept by each rebuild), whatever set the lists
-            list_owners(self.pairs[0], self.state.n, self.pairs[4])
-            list_owners(self.wall_pairs[0], self.state.n, self.wall_pairs[4])
+            list_owners(self.pairs.start, self.state.n, self.pairs.scratch_partners)
+            list_owners(self.wall_pairs.start, self.state.n, self.wall_pairs.scratch_ids)
             status, done = loop.run_chunk(self.model_ids, self.params, self._law, self._grains(),
                                           self.pairs, self._walls(), self._periodic(),
                                           self.clock, self.counters, self.integrator_history,
@@ -333,9 +332,9 @@ class Simulation:
                 return status
             need_p = int(self.counters[loop.NEED_PAIRS])
             need_w = int(self.counters[loop.NEED_WALLS])
-            if need_p > self.pairs[1].size:
+            if need_p > self.pairs.partners.size:
                 self._allocate_pairs(int(1.3 * need_p) + 64)
-            if need_w > self.wall_pairs[1].size:
+            if need_w > self.wall_pairs.ids.size:
                 self._allocate_walls(int(1.3 * need_w) + 16)
 
     def run(self, steps=None, time=None, until=None, every=(), max_chunk=20000,
@@ -344,7 +343,8 @@ class Simulation:
         at the first step end not before the time), or until the compiled condition
         ``until`` (MaxSpeedBelow, EnergyRatioBelow) holds, whichever comes first.
 
-        every : list of (Periodic, callback(sim)) run between chunks when due.
+        every : list of (trigger, callback(sim)) (core.triggers: Periodic, or their
+            compositions), each callback run between chunks when its trigger fires.
         between : callback(sim) run after every chunk; returning True stops the run
             ("stopped").  Chunks end on multiples of check_interval (or where a trigger
             or the end falls), so the stop condition is tested at the same steps however
@@ -352,17 +352,17 @@ class Simulation:
         Returns "done", "condition" or "stopped"; raises SimulationError on NaN or
         blow-up.
         """
-        for trigger, _ in every:
-            if not isinstance(trigger, Periodic):
-                raise TypeError("every= takes (Periodic, callback) pairs")
-        periods = [(trigger.period(self.dt), cb) for trigger, cb in every]
+        periods = {p: p.period(self.dt) for trigger, _ in every for p in pauses(trigger)}
+
+        def due(periodic):
+            return self.step % periods[periodic] == 0
         end = self.begin_run(steps, time, until)
         try:
             while self.step < end:
                 status, _ = self._chunk(self.chunk_size(end, max_chunk,
-                                                        [p for p, _ in periods]))
-                for period, cb in periods:
-                    if self.step % period == 0:
+                                                        list(periods.values())))
+                for trigger, cb in every:
+                    if trigger.fires(due, self.time):
                         cb(self)
                 if status == loop.CONDITION:
                     return "condition"
@@ -382,7 +382,10 @@ class Simulation:
         if steps is None and time is None:
             raise ValueError("run needs steps= or time= (an upper bound, also with until=)")
         if steps is None:
-            steps = int(math.ceil(time / self.dt - 1e-9))
+            # a deadline at most 1e-6 of a step past a step end ends there: a deadline
+            # kept as simulated time then falls on the same step whatever the time a
+            # run resumes from (summed steps differ from steps x dt by rounding)
+            steps = int(math.ceil(time / self.dt - 1e-6))
         if steps < 0:
             raise ValueError(f"steps must be >= 0, got {steps}")
         if self.counters[loop.HISTORY_STEPS] == 0 and steps > 0:
@@ -434,10 +437,8 @@ class Simulation:
         bit."""
         arrays = {f"grains/{k}": v for k, v in self.state.arrays().items()}
         arrays.update({f"integrator/{k}": v for k, v in self.integrator_state.items()})
-        for group, names, values in (("pairs", _PAIR_ARRAYS, self.pairs),
-                                     ("wall_contacts", _WALL_CONTACT_ARRAYS,
-                                      self.wall_pairs)):
-            arrays.update({f"{group}/{k}": v for k, v in zip(names, values)
+        for group, lists in (("pairs", self.pairs), ("wall_contacts", self.wall_pairs)):
+            arrays.update({f"{group}/{k}": v for k, v in lists._asdict().items()
                            if not k.startswith("scratch_")
                            and f"{group}/{k}" not in _TRANSIENT})
         w = self.walls
@@ -467,14 +468,15 @@ class Simulation:
             put(v, f"grains/{k}")
         for k, v in self.integrator_state.items():
             put(v, f"integrator/{k}")
-        def lists(group, names):  # scratch arrays are rebuilt empty, like their twins
-            return tuple(np.zeros((self.state.n, 6)) if f"{group}/{k}" in _TRANSIENT
-                         else np.zeros_like(arrays[f"{group}/{k.removeprefix('scratch_')}"])
-                         if k.startswith("scratch_") else np.array(arrays[f"{group}/{k}"])
-                         for k in names)
+        def lists(group, bundle):  # scratch arrays are rebuilt empty, like their twins
+            return bundle(**{
+                k: np.zeros((self.state.n, 6)) if f"{group}/{k}" in _TRANSIENT
+                else np.zeros_like(arrays[f"{group}/{k.removeprefix('scratch_')}"])
+                if k.startswith("scratch_") else np.array(arrays[f"{group}/{k}"])
+                for k in bundle._fields})
 
-        self.pairs = lists("pairs", _PAIR_ARRAYS)
-        self.wall_pairs = lists("wall_contacts", _WALL_CONTACT_ARRAYS)
+        self.pairs = lists("pairs", Pairs)
+        self.wall_pairs = lists("wall_contacts", WallPairs)
         for k in ("offset", "base", "velocity", "force", "motion_kind", "motion"):
             put(getattr(self.walls, k), f"walls/{k}")
         put(self.reference_positions, "loop/reference_positions")
@@ -490,16 +492,16 @@ class Simulation:
         the law loop's workspaces once it has run on the CPU)."""
         arrays = list(self.state.arrays().values()) + list(self.pairs) \
             + list(self.wall_pairs) + [self.reference_positions, self.max_overlap] \
-            + (list(self._law[1:]) if self._law is not None else [])
+            + ([a for a in self._law if isinstance(a, np.ndarray)]
+               if self._law is not None else [])
         return int(sum(a.nbytes for a in arrays))
 
     @staticmethod
-    def _touching(lists, names):
+    def _touching(lists, listed):
         """(owner grain, listed index, force (K, 3) [N]) of the contacts of the lists
-        ``lists`` (arrays named by ``names``: start, then the listed indices) whose force
-        of the last evaluation is not zero."""
-        arrays = dict(zip(names, lists))
-        start, listed, force = arrays["start"], arrays[names[1]], arrays["force"]
+        ``lists`` (bundles.Pairs or WallPairs; ``listed`` names its listed indices)
+        whose force of the last evaluation is not zero."""
+        start, listed, force = lists.start, getattr(lists, listed), lists.force
         n = start.size - 1
         m = int(start[n])
         owner = np.repeat(np.arange(n), np.diff(start))
@@ -510,7 +512,7 @@ class Simulation:
         """The touching grain pairs of the last force evaluation (engine.Contacts).  The
         contact point sits R'_i = R_i - h R_j/(R_i + R_j) from the centre of i along -n,
         h the overlap (engines/soft/contacts.py, Oquendo Eq. 3-4)."""
-        i, j, force = self._touching(self.pairs, _PAIR_ARRAYS)
+        i, j, force = self._touching(self.pairs, "partners")
         s = self.state
         separation = self.walls.minimum_image(s.positions[i] - s.positions[j])
         distance = np.linalg.norm(separation, axis=1)
@@ -526,7 +528,7 @@ class Simulation:
         """The touching grain-wall contacts of the last force evaluation
         (engine.WallContacts); the contact point is the foot of the grain's centre on the
         wall."""
-        grain, wall, force = self._touching(self.wall_pairs, _WALL_CONTACT_ARRAYS)
+        grain, wall, force = self._touching(self.wall_pairs, "ids")
         distance, normal = self.walls.distances(self.state.positions[grain], wall)
         normal_force = np.einsum("ka,ka->k", force, normal)
         return WallContacts(grain, wall, -distance[:, None] * normal, normal_force,
@@ -593,9 +595,8 @@ class Simulation:
             getattr(s, name)[idx] = value
         chosen = np.zeros(s.n, bool)
         chosen[idx] = True
-        for lists, names, partners in ((self.pairs, _PAIR_ARRAYS, True),
-                                       (self.wall_pairs, _WALL_CONTACT_ARRAYS, False)):
-            arrays = dict(zip(names, lists))
+        for lists, partners in ((self.pairs, True), (self.wall_pairs, False)):
+            arrays = lists._asdict()
             start = arrays["start"]
             m = int(start[s.n])
             stale = chosen[np.repeat(np.arange(s.n), np.diff(start))]

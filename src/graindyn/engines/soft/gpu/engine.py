@@ -267,11 +267,12 @@ class DeviceEnsemble:
     def _upload(self):
         lay, sims = self.layout, self.sims
         lay.refresh()
-        self.dev = {}
-        for group, arrays in bundles(sims[0]).items():
-            self.dev[group] = [
-                cuda.device_array(*lay.shape(group, q)) if (group, q) in SCRATCH
-                else cuda.to_device(lay.join(group, q)) for q in range(len(arrays))]
+        # each group's device arrays in a bundle of its host class (dev["grains"].radii)
+        self.dev = {
+            group: type(bundle)(**{
+                name: cuda.device_array(*lay.shape(group, name)) if (group, name) in SCRATCH
+                else cuda.to_device(lay.join(group, name)) for name in bundle._fields})
+            for group, bundle in bundles(sims[0]).items()}
         rows, systems = lay.rows, lay.k
         walls = int(np.diff(lay.wb).max())
         self.model = cuda.to_device(sims[0].model_ids)
@@ -301,9 +302,9 @@ class DeviceEnsemble:
 
     def _download(self):
         for group, arrays in self.dev.items():
-            for q, dev in enumerate(arrays):
-                if (group, q) not in SCRATCH:
-                    self.layout.split(group, q, dev.copy_to_host())
+            for name, dev in arrays._asdict().items():
+                if (group, name) not in SCRATCH:
+                    self.layout.split(group, name, dev.copy_to_host())
 
     def _rebuild(self, due):
         """Device-side neighbour build (engines/soft/gpu/neighbours.py) of the systems with due[k].
@@ -313,7 +314,7 @@ class DeviceEnsemble:
         while True:
             need_p, need_w, bad = self.lists.build(
                 due, self._mask("due", due), self.dev["grains"], self.dev["pairs"],
-                self.dev["walls"], self.dev["periodic"], self.dev["loop"][0], self.cutoff)
+                self.dev["walls"], self.dev["periodic"], self.dev["loop"].clock, self.cutoff)
             if bad.any():
                 return bad
             grow_p = need_p > np.diff(self.layout.pb)
@@ -347,18 +348,21 @@ class DeviceEnsemble:
     def _evaluate(self, mask, scale, divisor):
         """Forces of the masked systems, for a share scale * dt / divisor of the step."""
         g, p, w, per = (self.dev[k] for k in ("grains", "pairs", "walls", "periodic"))
-        clock, lay = self.dev["loop"][0], self.layout
-        self._rows("force", mask, self.model, self.params, g[0], g[1], g[2], g[8], g[9],
-                   g[11], g[12], per[0], per[2], p[0], p[1], p[2], p[8], p[9], p[10], w[0],
-                   w[1], w[5], w[6], w[7], w[10], w[11], w[12], w[16], w[17], g[14],
-                   self.lost, self.ops["lost"], clock, scale, divisor, lay.dev["table"])
+        clock, lay = self.dev["loop"].clock, self.layout
+        self._rows("force", mask, self.model, self.params, g.positions, g.velocities,
+                   g.angular_velocities, g.radii, g.masses, g.materials, g.fixed, per.flag,
+                   per.length, p.start, p.partners, p.history, p.force, p.own, p.torque_j,
+                   w.kind, w.geometry, w.offset, w.velocity, w.material, w.wall_start,
+                   w.wall_ids, w.wall_history, w.contact_force, w.contact_torque,
+                   g.max_overlap, self.lost, self.ops["lost"], clock, scale, divisor,
+                   lay.dev["table"])
         self.k["totals_partial"][(lay.rows + 127) // 128, 128](
-            lay.dev["row_first"], lay.dev["row_system"], lay.dev["wb"], mask, w[10], w[11],
-            w[16], w[6], self.lost, self.totals)
+            lay.dev["row_first"], lay.dev["row_system"], lay.dev["wb"], mask, w.wall_start,
+            w.wall_ids, w.contact_force, w.velocity, self.lost, self.totals)
         # the view of as many columns as the rows have (totals_apply counts the walls by it)
         totals = self.folded[:, :self.totals.shape[1]]
         fold(self.k, lay, self.totals, self.ops["totals"], totals)
-        self._systems("totals_apply", totals, lay.dev["wb"], mask, w[8], clock, scale,
+        self._systems("totals_apply", totals, lay.dev["wb"], mask, w.force, clock, scale,
                       divisor)
 
     def _correct(self, mask, stage, scale, last):
@@ -366,32 +370,37 @@ class DeviceEnsemble:
         correction kernel into ``folded`` (the bound; on a checked ``last`` stage, the
         checks too)."""
         g, p, w, per = (self.dev[k] for k in ("grains", "pairs", "walls", "periodic"))
-        clock, lay = self.dev["loop"][0], self.layout
+        clock, lay = self.dev["loop"].clock, self.layout
         integrator = int(self.sims[0].counters[loop.INTEGRATOR])
         self._rows("correct", mask, integrator, stage, clock, scale, self.started,
-                   int(self.sims[0].counters[loop.DIM]), p[9], p[6], p[7], p[8], p[10],
-                   w[10], w[16], w[17], g[4], g[5], g[9], g[10], g[0], g[13], g[1], g[2], g[3],
-                   g[6], g[7], g[12], per[0], per[2], self.dev["loop"][1], g[14], self.run,
-                   last, self.partial, self.ops["columns"])
+                   int(self.sims[0].counters[loop.DIM]), p.own, p.reverse_start,
+                   p.reverse_pairs, p.force, p.torque_j, w.wall_start, w.contact_force,
+                   w.contact_torque, g.forces, g.torques, g.masses, g.inertias, g.positions,
+                   g.reference_positions, g.velocities, g.angular_velocities, g.orientations,
+                   g.accelerations, g.angular_accelerations, g.fixed, per.flag, per.length,
+                   self.dev["loop"].integrator_history, g.max_overlap, self.run, last,
+                   self.partial, self.ops["columns"])
         fold(self.k, lay, self.partial, self.ops["columns"], self.folded[:, :COLUMNS])
 
     def _step(self, integrator, stages):
         """Enqueue one step of every system the device mask holds: nothing is read
         back; finish_kernel stops or pauses the systems."""
-        mask, clock, w = self.mask, self.dev["loop"][0], self.dev["walls"]
+        mask, clock, w = self.mask, self.dev["loop"].clock, self.dev["walls"]
         for stage in range(stages):
             g = self.dev["grains"]
-            self._rows("drift", mask, integrator, stage, clock, self.started, g[0], g[1],
-                       g[2], g[3], g[6], g[7], g[12], self.dev["loop"][1])
+            self._rows("drift", mask, integrator, stage, clock, self.started, g.positions,
+                       g.velocities, g.angular_velocities, g.orientations, g.accelerations,
+                       g.angular_accelerations, g.fixed, self.dev["loop"].integrator_history)
             if stage == 0:
-                self._systems("walls", self.layout.dev["wb"], mask, w[2], w[3], w[4], w[5],
-                              w[6], w[8], clock)
+                self._systems("walls", self.layout.dev["wb"], mask, w.motion_kind, w.motion,
+                              w.base, w.offset, w.velocity, w.force, clock)
             self._evaluate(mask, 1.0, float(stages))
             last = stage == stages - 1
             self._correct(mask, stage, 1.0, last)
             if last:
                 self._systems("finish", self.layout.dev["wb"], mask, self.run, clock,
-                              self.started, self.folded, w[5], w[9], w[6])
+                              self.started, self.folded, w.offset, w.reference_offset,
+                              w.velocity)
             else:
                 self._systems("bound_apply", self.folded, mask, clock, 1.0)
 
@@ -464,7 +473,8 @@ class DeviceEnsemble:
             return which
         w = self.dev["walls"]
         self._systems("decide", self.layout.dev["wb"], self._mask("decide", which),
-                      self.dev["loop"][0], w[5], w[9], w[6], self.control)
+                      self.dev["loop"].clock, w.offset, w.reference_offset, w.velocity,
+                      self.control)
         return which & (self.control.copy_to_host() != 0)
 
     def _resume(self, table, rebuilt):
@@ -493,7 +503,7 @@ class DeviceEnsemble:
         self.run.copy_to_device(table)
         self._evaluate(mask, 0.0, 1.0)
         self._correct(mask, 0, 0.0, True)
-        self._systems("bound_apply", self.folded, mask, self.dev["loop"][0], 0.0)
+        self._systems("bound_apply", self.folded, mask, self.dev["loop"].clock, 0.0)
         counters[prime, loop.PRIMED] = 1
         worst = self.folded.copy_to_host()[:, OVERLAP]
         limits = np.array([s.clock[loop.OVERLAP_LIMIT] for s in self.sims])
@@ -520,7 +530,7 @@ class DeviceEnsemble:
             ahead = np.full(built.size, float(BATCH_START))
         else:
             folded = self.folded.copy_to_host()[running]
-            clock = self.dev["loop"][0].copy_to_host()[running]
+            clock = self.dev["loop"].clock.copy_to_host()[running]
             d = np.where((built >= 0) & (steps == 0), 0.0, np.sqrt(folded[:, DISPLACED]))
             v, a = np.sqrt(folded[:, SPEED]), np.sqrt(folded[:, ACCELERATION])
             room = np.maximum(0.5 * clock[:, loop.SKIN] - d, 0.0)

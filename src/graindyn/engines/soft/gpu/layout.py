@@ -15,29 +15,46 @@ rb[k]..rb[k+1] are system k's), so that every sum, maximum and tree is the one t
 system gets when run alone: system k of an ensemble repeats it to the bit.
 Materials keep their member's numbering: member k's pair table is params[table[k]],
 each distinct table stored once.
+
+The device keeps the arrays of the Simulation bundles (engines/soft/bundles.py), in the
+groups "grains", "pairs", "walls", "periodic" and "loop", each a bundle of the same
+class, and every table below names an array by (group, field).
 """
 import numpy as np
 from numba import cuda
 
 from .. import loop
+from ..bundles import WALL_TABLE_FIELDS, LoopArrays
 
 ROW = 128              # most grains per row (and threads per block of per-grain kernels)
 
-# index in the Simulation bundles -> the base added on the device
-SHIFTS = {("pairs", 0): "pb", ("pairs", 1): "gb", ("pairs", 6): "pb", ("pairs", 7): "pb",
-          ("walls", 10): "cb", ("walls", 11): "wb"}
+# (group, field) of the Simulation bundles -> the base added on the device
+SHIFTS = {("pairs", "start"): "pb", ("pairs", "partners"): "gb",
+          ("pairs", "reverse_start"): "pb", ("pairs", "reverse_pairs"): "pb",
+          ("walls", "wall_start"): "cb", ("walls", "wall_ids"): "wb"}
 # arrays allocated on the device but never transferred: rewritten before they are read
-SCRATCH = {("pairs", 3), ("pairs", 4), ("pairs", 5), ("pairs", 9), ("walls", 13),
-           ("walls", 14), ("walls", 15)}
+SCRATCH = {("pairs", "scratch_start"), ("pairs", "scratch_partners"),
+           ("pairs", "scratch_history"), ("pairs", "own"), ("walls", "scratch_wall_start"),
+           ("walls", "scratch_wall_ids"), ("walls", "scratch_wall_history")}
 # one row per system (K, ...) rather than concatenated
-STACKED = {("periodic", 0), ("periodic", 1), ("periodic", 2), ("loop", 0)}
+STACKED = {("periodic", "flag"), ("periodic", "lo"), ("periodic", "length"),
+           ("loop", "clock")}
+# CSR starts: n_k + 1 entries per system
+STARTS = {("pairs", "start"), ("pairs", "scratch_start"), ("pairs", "reverse_start"),
+          ("walls", "wall_start"), ("walls", "scratch_wall_start")}
+# one row per grain outside the "grains" group; ("loop", "integrator_history") is
+# joined along its second axis (slots, N, 3)
+PER_GRAIN = {("pairs", "own"), ("loop", "integrator_history")}
+BY_GRAIN_AXIS = ("loop", "integrator_history")
 
 
 def bundles(sim):
-    """The host arrays of one Simulation, in the order the device copies keep them."""
-    return {"grains": list(sim._grains()), "pairs": list(sim.pairs),
-            "walls": list(sim._walls()), "periodic": list(sim._periodic()),
-            "loop": [sim.clock, sim.integrator_history]}
+    """The host arrays of one Simulation by group, as bundles (engines/soft/bundles.py):
+    grains (Grains), pairs (Pairs), walls (WallBundle), periodic (PeriodicBox) and loop
+    (LoopArrays); the device copies keep the same groups and fields."""
+    return {"grains": sim._grains(), "pairs": sim.pairs, "walls": sim._walls(),
+            "periodic": sim._periodic(),
+            "loop": LoopArrays(clock=sim.clock, integrator_history=sim.integrator_history)}
 
 
 def _bases(sizes):
@@ -86,8 +103,8 @@ class Layout:
         capacities, and every table the kernels read (``dev``: rb, row_first,
         row_system, gb, wb, pb, cb, table): called before each upload."""
         self._merge_params()
-        self.pb = _bases([s.pairs[1].size for s in self.sims])
-        self.cb = _bases([s.wall_pairs[1].size for s in self.sims])
+        self.pb = _bases([s.pairs.partners.size for s in self.sims])
+        self.cb = _bases([s.wall_pairs.ids.size for s in self.sims])
         self.dev = {name: cuda.to_device(getattr(self, name)) for name in
                     ("rb", "row_first", "row_system", "gb", "wb", "pb", "cb", "table")}
 
@@ -109,50 +126,48 @@ class Layout:
             self.params[t, :table.shape[0], :table.shape[0]] = table
         self.table = np.array(index, np.int64)
 
-    def join(self, group, index):
-        """The device-layout (host) array of bundle entry (group, index)."""
-        arrays = [bundles(s)[group][index] for s in self.sims]
-        if (group, index) in STACKED:
+    def join(self, group, name):
+        """The device-layout (host) array of bundle field (group, name)."""
+        arrays = [getattr(bundles(s)[group], name) for s in self.sims]
+        if (group, name) in STACKED:
             return np.stack(arrays)
-        shift = SHIFTS.get((group, index))
+        shift = SHIFTS.get((group, name))
         if shift is not None:
             base = getattr(self, shift)
             arrays = [a + a.dtype.type(base[k]) for k, a in enumerate(arrays)]
-        return np.concatenate(arrays, axis=1 if (group, index) == ("loop", 1) else 0)
+        return np.concatenate(arrays, axis=1 if (group, name) == BY_GRAIN_AXIS else 0)
 
-    def split(self, group, index, joined):
+    def split(self, group, name, joined):
         """Write a joined array back into each system's host array."""
         for k, s in enumerate(self.sims):
-            host = bundles(s)[group][index]
-            if (group, index) in STACKED:
+            host = getattr(bundles(s)[group], name)
+            if (group, name) in STACKED:
                 host[...] = joined[k]
                 continue
-            lo, hi = self._range(group, index, k)
-            part = joined[:, lo:hi] if (group, index) == ("loop", 1) else joined[lo:hi]
-            shift = SHIFTS.get((group, index))
+            lo, hi = self._range(group, name, k)
+            part = joined[:, lo:hi] if (group, name) == BY_GRAIN_AXIS else joined[lo:hi]
+            shift = SHIFTS.get((group, name))
             if shift is not None:
                 part = part - part.dtype.type(getattr(self, shift)[k])
             host[...] = part
 
-    def _range(self, group, index, k):
-        """Rows of system k in the joined array of (group, index)."""
-        if group == "grains" or (group, index) in (("pairs", 9), ("loop", 1)):
+    def _range(self, group, name, k):
+        """Rows of system k in the joined array of (group, name)."""
+        if group == "grains" or (group, name) in PER_GRAIN:
             return self.gb[k], self.gb[k + 1]
-        if group == "pairs":
-            if index in (0, 3, 6):
-                return self.gb[k] + k, self.gb[k + 1] + k + 1
-            return self.pb[k], self.pb[k + 1]
-        if index in (10, 13):
+        if (group, name) in STARTS:
             return self.gb[k] + k, self.gb[k + 1] + k + 1
-        if index < 10:
+        if group == "pairs":
+            return self.pb[k], self.pb[k + 1]
+        if name in WALL_TABLE_FIELDS:
             return self.wb[k], self.wb[k + 1]
         return self.cb[k], self.cb[k + 1]
 
-    def shape(self, group, index):
+    def shape(self, group, name):
         """Shape and dtype of the joined array (for arrays never transferred)."""
-        a = bundles(self.sims[0])[group][index]
-        rows = int(self._range(group, index, self.k - 1)[1])
-        if (group, index) == ("loop", 1):
+        a = getattr(bundles(self.sims[0])[group], name)
+        rows = int(self._range(group, name, self.k - 1)[1])
+        if (group, name) == BY_GRAIN_AXIS:
             return (a.shape[0], rows, *a.shape[2:]), a.dtype
         return (rows, *a.shape[1:]), a.dtype
 

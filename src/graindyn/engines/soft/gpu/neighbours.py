@@ -338,18 +338,22 @@ class DeviceNeighbours:
 
     def build(self, due, mask, grains, pairs, walls, periodic, clock, cutoff):
         """Rebuild the lists of the systems with due[k] != 0 (host array; ``mask`` its
-        device copy); clock (K, 12) and cutoff (K,) [m] are device arrays.  Returns (pairs needed (K,), wall
+        device copy); grains, pairs, walls and periodic are the engine's device bundles
+        (layout.bundles: Grains, Pairs, WallBundle, PeriodicBox of device arrays; the new
+        lists are built in their scratch arrays); clock (K, 12) and cutoff (K,) [m] are
+        device arrays.  Returns (pairs needed (K,), wall
         contacts needed (K,), bad (K,)): when a system's coordinates are not finite
         (bad) or a list does not fit its slots, nothing but the wrapped positions has
         changed."""
         k, lay = self.k, self.layout
-        positions, radii = grains[0], grains[8]
-        (start, partners, history, new_start, new_partners, new_history, reverse_start,
-         reverse_pairs) = pairs[:8]
-        kind, geometry, offset = walls[0], walls[1], walls[5]
-        wall_start, wall_ids, wall_history, new_wall_start, new_wall_ids, new_wall_history \
-            = walls[10:16]
-        flag, lo, length = periodic
+        positions, radii = grains.positions, grains.radii
+        start, partners, reverse_start, reverse_pairs = \
+            pairs.start, pairs.partners, pairs.reverse_start, pairs.reverse_pairs
+        # the new lists are built in the scratch arrays, then committed
+        new_start, new_partners = pairs.scratch_start, pairs.scratch_partners
+        kind, geometry, offset = walls.kind, walls.geometry, walls.offset
+        new_wall_start, new_wall_ids = walls.scratch_wall_start, walls.scratch_wall_ids
+        flag, lo, length = periodic.flag, periodic.lo, periodic.length
         origin, size = self.grid
         dev = lay.dev
         launch(k["zero"], lay.k, self.bad)
@@ -386,7 +390,12 @@ class DeviceNeighbours:
             return need[0], need[1], bad
         self._rows(k["scan_lists"], mask, *scan_args, True, new_start, new_partners,
                    new_wall_start, new_wall_ids)
-        for old, new in ((pairs[:3], pairs[3:6]), (walls[10:13], walls[13:16])):
+        lists = (((pairs.start, pairs.partners, pairs.history),
+                  (pairs.scratch_start, pairs.scratch_partners, pairs.scratch_history)),
+                 ((walls.wall_start, walls.wall_ids, walls.wall_history),
+                  (walls.scratch_wall_start, walls.scratch_wall_ids,
+                   walls.scratch_wall_history)))
+        for old, new in lists:          # (start, listed, history) of each list
             self._rows(k["carry"], mask, *old, *new)
             self._rows(k["commit"], mask, dev["gb"], *new, *old)
         # reverse lists: counted into the free scratch starts, then rebased
@@ -399,6 +408,7 @@ class DeviceNeighbours:
         self._rows(k["place_reverse"], mask, start, partners, reverse_start, self.fill,
                    reverse_pairs)
         self._rows(k["sort_rows"], mask, reverse_start, reverse_pairs)
-        self._rows(k["set_reference"], mask, positions, grains[13])
-        launch(k["set_wall_reference"], lay.k, dev["wb"], mask, offset, walls[9])
+        self._rows(k["set_reference"], mask, positions, grains.reference_positions)
+        launch(k["set_wall_reference"], lay.k, dev["wb"], mask, offset,
+               walls.reference_offset)
         return need[0], need[1], bad

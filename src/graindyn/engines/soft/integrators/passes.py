@@ -244,9 +244,11 @@ def after_force(integrator, stage, dt, started, dim, gravity, pairs, forces, tor
     below the skin).  One pass over grains, in fixed blocks (one per entry of
     block_scratch, contacts.block_count), so the result does not depend on thread
     timing.  ``drift_next``: also the first drift of the next step (_correct_block);
-    the bound is then the displacement itself, max |r - r_ref| after that drift."""
-    (start, partners, pair_history, scratch_start, scratch_partners, scratch_history,
-     reverse_start, reverse_pairs, pair_force, own, pair_torque_j) = pairs
+    the bound is then the displacement itself, max |r - r_ref| after that drift.
+    pairs : bundles.Pairs (its start, reverse lists, force, own and torque_j)."""
+    own, start, reverse_start, reverse_pairs, pair_force, pair_torque_j = \
+        pairs.own, pairs.start, pairs.reverse_start, pairs.reverse_pairs, pairs.force, \
+        pairs.torque_j
     n = masses.size
     nblock = block_scratch.size
     if nblock == 1:    # no parallel region to enter (a few us per call); a plain int64 0
