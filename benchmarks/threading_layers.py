@@ -57,15 +57,16 @@ def deposition(chunks):
     """Wall seconds of each 0.005 s of simulated time of the 400-grain deposition."""
     import numpy as np
 
-    from graindyn.config import load, validate
-    from graindyn.protocols.deposition import Deposition
+    from graindyn.config import build, load, validate
 
     config = load(ROOT / "examples" / "deposition_3d.toml")
     config.grains.count = 400
     data = config.model_dump()
     data["walls"]["container"] = {"kind": "cylinder", "radius": 4e-3, "height": 0.06}
     config = validate(data)
-    sim = Deposition(config).create(np.random.default_rng(config.run.seed))
+    protocol = build.protocol(config)
+    sim = build.engine(config, build.sample(config, protocol,
+                                            np.random.default_rng(config.run.seed)), protocol)
     sim.run(time=1e-4)                    # compile and first lists, untimed
     walls = []
     for _ in range(chunks):

@@ -7,10 +7,10 @@ __version__ = "0.1.0"
 from .core.species import ContactModel, Material
 from .core.state import State, cell_order, sample_radii
 from .core.triggers import EnergyRatioBelow, MaxSpeedBelow, Periodic
-from .core.walls import Cylinder, Motion, Periodic as PeriodicBoundary, Plane, box
+from .core.walls import Cylinder, Motion, Periodic as PeriodicBoundary, Plane, Segment, box
 from .engines.soft.ensemble import Ensemble
 from .engines.soft.simulation import Simulation, SimulationError
 
 __all__ = ["Simulation", "SimulationError", "Ensemble", "ContactModel", "Material", "State",
            "cell_order", "sample_radii", "EnergyRatioBelow", "MaxSpeedBelow", "Periodic", "Cylinder",
-           "Motion", "PeriodicBoundary", "Plane", "box", "__version__"]
+           "Motion", "PeriodicBoundary", "Plane", "Segment", "box", "__version__"]

@@ -106,10 +106,11 @@ def info():
     import numpy as np
 
     from . import _jit, _threads
+    from .engines import ENGINES
+    from .engines.soft.gpu import unavailable
     from .engines.soft.integrators import NAMES
     from .physics import registry
-
-    from .engines.soft.gpu import unavailable
+    from .protocols import PROTOCOLS
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -132,22 +133,26 @@ def info():
              f"gpu: {gpu}",
              f"compile cache: {cache} ({size / 1e6:.1f} MB"
              + (")" if cache.exists() else ", empty: the first run compiles, ~1-2 min)")]
+    lines.append("engines (engine.kind):")
+    lines += [f"  {kind}: {entry.summary}" for kind, entry in ENGINES.items()]
+    lines.append("protocols (protocol.kind):")
+    lines += [f"  {kind}: {protocol.summary}" for kind, protocol in PROTOCOLS.items()]
     for mode in registry.MODES:
         lines.append(f"{mode} laws: " + ", ".join(law.name for law in registry.laws(mode)))
-    lines.append("integrators: " + ", ".join(NAMES))
+    lines.append("integrators (soft engine): " + ", ".join(NAMES))
     typer.echo("\n".join(lines))
 
 
 @app.command()
 def plot(rundir: Annotated[pathlib.Path, typer.Argument(help="A finished run directory.")]):
     """Redraw the figures of a finished run from its saved files."""
-    from .config import ConfigError, load
+    from .config import ConfigError, build, load
     from .output.rundir import RunDirectory
-    from .runner import PROTOCOLS, draw
+    from .runner import draw
 
     try:
         cfg = load(rundir / "config.toml")
-        paths = draw(RunDirectory(rundir), PROTOCOLS[cfg.protocol.kind](cfg))
+        paths = draw(RunDirectory(rundir), build.protocol(cfg))
     except (ConfigError, FileNotFoundError) as err:
         _fail(err)
     typer.echo("\n".join(str(p) for p in paths))

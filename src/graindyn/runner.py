@@ -17,9 +17,6 @@ import numba
 import numpy as np
 
 from . import _threads as threading_policy
-
-from .analysis.energy import energy_budget
-from .analysis.packing import coordination_number
 from .config import ConfigError, build, dumps, load
 from .config.models import Config
 from .core.state import State
@@ -27,19 +24,15 @@ from .core.triggers import Periodic
 from .output import checkpoint
 from .output.progress import progress_bar
 from .output.rundir import RunDirectory, Series
-from .output.vtk import VtkSeries
-from .protocols.deposition import Deposition
-from .protocols.oedometer import Oedometer
-
-PROTOCOLS = {"deposition": Deposition, "oedometer": Oedometer}
+from .output.writers import SeriesWriter, VtkWriter
 
 
 class RunInterrupted(RuntimeError):
     """A run stopped by a signal after writing its checkpoint."""
 
-    def __init__(self, signum, rundir, step):
+    def __init__(self, signum, rundir, time):
         self.signum = signum
-        super().__init__(f"interrupted by {signal.Signals(signum).name} at step {step}; "
+        super().__init__(f"interrupted by {signal.Signals(signum).name} at t = {time:.6g} s; "
                          f"checkpoint written: resume with 'graindyn run --resume {rundir}'")
 
 
@@ -57,22 +50,6 @@ def check(config: Config):
         if reason:
             raise ConfigError(f"run.backend = 'gpu': {reason}; use backend = 'cpu'")
     return build.check_time_step(config)
-
-
-def series_row(sim):
-    """One row of the standard time series (column names carry the units)."""
-    e = energy_budget(sim)
-    speed = np.sqrt(np.max(np.einsum("ij,ij->i", sim.state.velocities,
-                                     sim.state.velocities), initial=0.0))
-    row = {"time [s]": sim.time, "step [-]": sim.step, "kinetic [J]": e["kinetic"],
-           "rotational [J]": e["rotational"], "gravitational [J]": e["gravitational"],
-           "elastic [J]": e["elastic"], "dissipated_normal [J]": e["dissipated_normal"],
-           "dissipated_tangential [J]": e["dissipated_tangential"],
-           "wall_work [J]": e["wall_work"], "max_speed [m/s]": speed,
-           "coordination [-]": coordination_number(sim)}
-    for k, wall in enumerate(sim.walls.walls):
-        row[f"force_{wall.name} [N]"] = sim.walls.normal_force(k)
-    return row
 
 
 class _Signals:
@@ -97,86 +74,93 @@ class _Signals:
 
 
 class _Driver:
-    """The between-chunk work of one run: series, snapshots, progress, checkpoints."""
+    """The between-chunk work of one run: writers, progress, checkpoints."""
 
-    def __init__(self, rundir, protocol, sim, rng, progress_state, vtk_entries, show):
-        self.rundir, self.protocol, self.sim, self.rng = rundir, protocol, sim, rng
+    def __init__(self, rundir, protocol, engine, rng, progress_state, output, show):
+        self.rundir, self.protocol, self.engine, self.rng = rundir, protocol, engine, rng
         protocol.log = rundir.log
         self.state = progress_state
-        out = protocol.config.output
-        self.series = Series(rundir.path / "series.csv")
-        self.vtk = VtkSeries(rundir.vtk, out.vtk_contacts, vtk_entries)
-        self.every = [(Periodic(time=out.series_every), self.record)]
-        if out.vtk_every is not None:
-            self.every.append((Periodic(time=out.vtk_every), self.vtk.write))
-        self.every_steps = out.checkpoint_every_steps or math.inf
-        self.every_seconds = out.checkpoint_every_seconds or math.inf
-        self.last_step = sim.step
+        self.writers = [SeriesWriter(rundir.path / "series.csv",
+                                     Periodic(time=output.series_every))]
+        if output.vtk_every is not None:
+            self.writers.append(VtkWriter(rundir.vtk, Periodic(time=output.vtk_every),
+                                          output.vtk_contacts))
+        self.every = [(w.trigger, w.write) for w in self.writers]
+        self.figures = output.figures
+        self.every_steps = output.checkpoint_every_steps or math.inf
+        self.every_seconds = output.checkpoint_every_seconds or math.inf
+        self.last_step = engine.step
         self.last_time = time.monotonic()
         self.show = show
         self.signals = None
         self.bar = None
 
-    def record(self, sim):
-        self.series.append(series_row(sim))
+    def resume(self, meta, t):
+        """Hand each writer its state from the checkpoint ``meta`` at time ``t`` [s]."""
+        states = meta.get("writers", {})
+        for w in self.writers:
+            w.resume(states.get(w.name, {}), t)
+
+    def write_all(self, engine):
+        """Every writer now, whatever its trigger (the start and the end of a run)."""
+        for w in self.writers:
+            w.write(engine)
 
     def write_checkpoint(self):
-        sim = self.sim
-        meta = {"protocol": self.state, "vtk": self.vtk.entries,
-                "rng": self.rng.bit_generator.state}
-        checkpoint.write(self.rundir.checkpoints, sim.snapshot(), meta, sim.step, sim.time)
-        self.last_step = sim.step
+        engine = self.engine
+        meta = {"protocol": self.state, "rng": self.rng.bit_generator.state,
+                "writers": {w.name: w.resume_state() for w in self.writers}}
+        checkpoint.write(self.rundir.checkpoints, engine.snapshot(), meta, engine.step,
+                         engine.time)
+        self.last_step = engine.step
         self.last_time = time.monotonic()
-        self.rundir.log(f"checkpoint at step {sim.step}, t = {sim.time:.6g} s")
+        self.rundir.log(f"checkpoint at t = {engine.time:.6g} s (step {engine.step})")
 
-    def between(self, sim):
+    def between(self, engine):
         if self.bar is not None:
-            self.bar.update(sim)
+            self.bar.update(engine)
         if self.signals.received is not None:
             self.write_checkpoint()
             return True
-        if sim.step - self.last_step >= self.every_steps \
+        if engine.step - self.last_step >= self.every_steps \
                 or time.monotonic() - self.last_time >= self.every_seconds:
             self.write_checkpoint()
         return False
 
     def drive(self):
         """Run the protocol's remaining phases; returns the results dict."""
-        sim, protocol = self.sim, self.protocol
-        chunk = int(min(20000, max(100, 2e6 / sim.state.n)))
+        engine, protocol = self.engine, self.protocol
         wall = time.perf_counter()
-        start_step = sim.step
+        start_step = engine.step
         with _Signals() as self.signals, progress_bar(self.show) as bars:
-            if sim.step == 0 and self.state["phase"] == 0 and not self.state["states"]:
-                self.record(sim)
-                self.vtk.write(sim)
+            if engine.time == 0 and self.state["phase"] == 0 and not self.state["states"]:
+                self.write_all(engine)
                 self.write_checkpoint()
             while self.state["phase"] < len(protocol.phases):
-                name = protocol.phases[self.state["phase"]]
-                phase = self.state["states"].setdefault(name, {})
-                self.rundir.log(f"phase {name} from step {sim.step}")
-                self.bar = bars.phase(name, sim, protocol.phase_duration(name))
-                status = protocol.run_phase(name, sim, phase, every=self.every,
-                                            between=self.between, max_chunk=chunk)
+                phase = protocol.phases[self.state["phase"]]
+                progress = self.state["states"].setdefault(phase.name, {})
+                self.rundir.log(f"phase {phase.name} from t = {engine.time:.6g} s")
+                self.bar = bars.phase(phase.name, engine, phase.duration())
+                status = phase.run(engine, progress, every=self.every,
+                                   between=self.between)
                 if status == "stopped":
                     self.rundir.log(f"stopped by signal {self.signals.received}")
-                    raise RunInterrupted(self.signals.received, self.rundir.path, sim.step)
+                    raise RunInterrupted(self.signals.received, self.rundir.path,
+                                         engine.time)
                 self.state["phase"] += 1
-                self.rundir.log(f"phase {name} ended ({status}) at step {sim.step}, "
-                                f"t = {sim.time:.6g} s")
+                self.rundir.log(f"phase {phase.name} ended at t = {engine.time:.6g} s "
+                                f"(step {engine.step})")
                 self.write_checkpoint()
-        if not self.series.path.exists() or self.series.read()["step [-]"][-1] != sim.step:
-            self.record(sim)
-        self.vtk.write(sim)
+        self.write_all(engine)
         seconds = time.perf_counter() - wall
-        results = protocol.results(sim, self.state["states"])
-        results.update({"dt_s": sim.dt, "steps_this_session": sim.step - start_step,
+        results = protocol.results(engine, self.state["states"])
+        results.update({"dt_s": engine.dt, "steps_this_session": engine.step - start_step,
                         "wall_time_this_session_s": seconds,
-                        "particle_steps_per_s": sim.state.n * (sim.step - start_step)
+                        "particle_steps_per_s": engine.state.n * (engine.step - start_step)
                         / max(seconds, 1e-9), "threads": numba.get_num_threads()})
         self.rundir.write_results(results)
         protocol.tables(self.rundir, results)
-        if protocol.config.output.figures:
+        if self.figures:
             draw(self.rundir, protocol, results)
         self.rundir.log("finished")
         return results
@@ -211,24 +195,26 @@ def execute(config: Config, out, show_progress=True, echo=print):
     """Start the run of ``config`` in the new run directory ``out``; returns its results."""
     report = check(config)
     threads, why = _threads(config.run.threads, config.grains.count)
-    protocol = PROTOCOLS[config.protocol.kind](config)
+    protocol = build.protocol(config)
     rng = np.random.default_rng(config.run.seed)
-    sim = protocol.create(rng)
+    state = build.sample(config, protocol, rng)
+    engine = build.engine(config, state, protocol)
     resolved = config.model_copy(deep=True)
-    resolved.engine.dt = sim.dt
-    resolved.engine.skin = sim.skin
+    for field in ("dt", "skin"):            # the engine's choices, written down
+        if field in type(resolved.engine).model_fields:
+            setattr(resolved.engine, field, getattr(engine, field))
     rundir = RunDirectory.create(out, dumps(resolved), {
         "seed": config.run.seed, "threads": threads, "threads_chosen": why,
         "threading_layer": threading_policy.layer(), "backend": config.run.backend,
-        "grains": sim.state.n})
-    rundir.log(f"start: {sim.state.n} grains, dt = {sim.dt:.4g} s "
-               f"({sim.dt / report['critical_time_s']:.3f} of the {report['criterion']}), "
-               + _threading_line(threads, why))
-    echo(f"run directory {rundir.path}: {sim.state.n} grains, dt = {sim.dt:.4g} s, "
+        "engine": config.engine.kind, "grains": engine.state.n})
+    rundir.log(f"start: {engine.state.n} grains, {config.engine.kind} engine, dt = "
+               f"{engine.dt:.4g} s ({engine.dt / report['critical_time_s']:.3f} of the "
+               f"{report['criterion']}), " + _threading_line(threads, why))
+    echo(f"run directory {rundir.path}: {engine.state.n} grains, dt = {engine.dt:.4g} s, "
          + _threading_line(threads, why))
     try:
-        return _Driver(rundir, protocol, sim, rng, {"phase": 0, "states": {}}, [],
-                       show_progress).drive()
+        return _Driver(rundir, protocol, engine, rng, {"phase": 0, "states": {}},
+                       config.output, show_progress).drive()
     finally:
         rundir.close()
 
@@ -245,28 +231,27 @@ def resume(out, show_progress=True, echo=print, threads=None, backend=None):
     threads, why = _threads(threads or started.get("threads"),
                             started.get("grains", config.grains.count))
     arrays, meta, step, t = checkpoint.latest(rundir.checkpoints, warn=echo)
-    protocol = PROTOCOLS[config.protocol.kind](config)
+    protocol = build.protocol(config)
     materials = arrays["grains/materials"]
     density = np.array([m.density for m in config.materials])[materials]
     state = State.create(arrays["grains/positions"], arrays["grains/radii"], density,
                          dim=config.run.dim, materials=materials)
-    sim = protocol.build(state)
+    engine = build.engine(config, state, protocol)
     try:
-        sim.restore(arrays)
+        engine.restore(arrays)
     except ValueError as err:
         raise checkpoint.CheckpointError(f"{rundir.path}: the checkpoint does not fit this "
                                          f"run's config: {err}") from None
     rng = np.random.default_rng()
     rng.bit_generator.state = meta["rng"]
-    Series(rundir.path / "series.csv").truncate(step)
-    vtk = VtkSeries(rundir.vtk, config.output.vtk_contacts, meta["vtk"])
-    vtk.truncate(step)
-    rundir.log(f"resume from step {step}, t = {t:.6g} s, {_threading_line(threads, why)}, backend "
-               f"{config.run.backend}")
-    echo(f"resuming {rundir.path} at step {step} (t = {t:.6g} s), "
+    rundir.log(f"resume from t = {t:.6g} s (step {step}), {_threading_line(threads, why)}, "
+               f"backend {config.run.backend}")
+    echo(f"resuming {rundir.path} at t = {t:.6g} s (step {step}), "
          + _threading_line(threads, why))
     try:
-        return _Driver(rundir, protocol, sim, rng, meta["protocol"], vtk.entries,
-                       show_progress).drive()
+        driver = _Driver(rundir, protocol, engine, rng, meta["protocol"], config.output,
+                         show_progress)
+        driver.resume(meta, t)
+        return driver.drive()
     finally:
         rundir.close()

@@ -25,17 +25,15 @@ Running the same command again skips finished runs (results.json present), resum
 interrupted ones from their last checkpoint and retries the failed ones (error.txt).
 
 The summary is pluggable per protocol: the protocol class
-(``runner.PROTOCOLS[config.protocol.kind]``) may define
-``summarize_sweep(sweep_dir, points)``, or ``SUMMARIES`` below names a function for the
-protocol kind; it gets the sweep directory and the collected points (``Point`` with
-``status`` and ``results``) and returns the paths it wrote.
+(``protocols.PROTOCOLS[config.protocol.kind]``) may define
+``summarize_sweep(sweep_dir, points)``; it gets the sweep directory and the collected
+points (``Point`` with ``status`` and ``results``) and returns the paths it wrote.
 """
 import contextlib
 import copy
 import csv
 import dataclasses
 import functools
-import importlib
 import json
 import math
 import os
@@ -58,10 +56,6 @@ CONNECT_TIMEOUT = "20s"           # to a scheduler given by address
 REFERENCE = "reference"
 ERROR_FILE = "error.txt"
 RESULTS_FILE = "results.json"
-
-# protocol kind -> "module:function" of its sweep summary (used when the protocol class
-# has no summarize_sweep of its own); imported only when a sweep of that kind finishes
-SUMMARIES = {"oedometer": "graindyn.studies.bauer_sweep:summarize_sweep"}
 
 
 class SweepInterrupted(RuntimeError):
@@ -716,15 +710,10 @@ def write_summary(out, points, sweep_name="", protocol=""):
 
 
 def summary_hook(kind):
-    """The protocol's sweep summary function, or None: the protocol class's
-    ``summarize_sweep`` if it has one, else the one named in SUMMARIES."""
-    from .runner import PROTOCOLS
+    """The protocol's sweep summary function (its ``summarize_sweep``), or None."""
+    from .protocols import PROTOCOLS
 
-    hook = getattr(PROTOCOLS.get(kind), "summarize_sweep", None)
-    if hook is None and kind in SUMMARIES:
-        module, name = SUMMARIES[kind].split(":")
-        hook = getattr(importlib.import_module(module), name)
-    return hook
+    return getattr(PROTOCOLS.get(kind), "summarize_sweep", None)
 
 
 def finish(sweep: Sweep, out, say=None):

@@ -10,10 +10,10 @@ import pytest
 from typer.testing import CliRunner
 
 from graindyn.cli import app
-from graindyn.config import Config, ConfigError, dumps, load, validate
-from graindyn.config.build import simulation_kwargs
+from graindyn.config import Config, ConfigError, build, dumps, load, validate
 from graindyn.config.models import MaterialSection, material_fields
 from graindyn.core.species import ContactModel, Material
+from graindyn.engines.soft import loop
 from graindyn.engines.soft.gpu import unavailable
 from graindyn.physics import registry
 
@@ -207,9 +207,12 @@ def test_engine_section_reaches_the_simulation(small_config):
     """Every option of the soft engine is passed on: orientations too (false: not
     turned)."""
     small_config.setdefault("engine", {})["orientations"] = False
-    kwargs = simulation_kwargs(Config.model_validate(small_config))
-    assert kwargs["orientations"] is False
-    assert kwargs["check_interval"] == 100
+    small_config["engine"]["check_interval"] = 50
+    config = Config.model_validate(small_config)
+    made = build.protocol(config)
+    sim = build.engine(config, build.sample(config, made, np.random.default_rng(1)), made)
+    assert sim.orientations is False
+    assert int(sim.counters[loop.CHECK_INTERVAL]) == 50
 
 
 def test_study_command_is_wired():
@@ -223,11 +226,11 @@ def test_deposition_puts_randomly_inserted_grains_in_cell_order(small_config):
     import numpy as np
 
     from graindyn import cell_order
-    from graindyn.protocols.deposition import Deposition
 
     small_config["protocol"]["insertion"] = "random"
-    sim = Deposition(Config.model_validate(small_config)).create(np.random.default_rng(5))
-    positions, radii = sim.state.positions, sim.state.radii
+    config = Config.model_validate(small_config)
+    state = build.sample(config, build.protocol(config), np.random.default_rng(5))
+    positions, radii = state.positions, state.radii
     assert not np.all(np.diff(radii) <= 0.0)          # no longer largest first
     np.testing.assert_array_equal(cell_order(positions, 2.2 * radii.max()),
                                   np.arange(radii.size))

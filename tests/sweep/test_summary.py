@@ -10,7 +10,7 @@ import pytest
 
 from graindyn import sweep as sweeps
 from graindyn.protocols.deposition import Deposition
-from graindyn.studies import bauer_sweep
+from graindyn.analysis import bauer_sweep
 from graindyn.sweep import Sweep, finish
 
 from .conftest import write_sweep
@@ -166,9 +166,9 @@ def test_combine_takes_the_larger_of_spread_and_fit_error():
 
 def test_oedometer_summary_tables_figure_and_fit(fake, monkeypatch, power_law):
     sweep, out, truth = fake
-    # the oedometer summary, registered for this protocol kind by name
-    monkeypatch.setitem(sweeps.SUMMARIES, "deposition",
-                        "graindyn.studies.bauer_sweep:summarize_sweep")
+    # the oedometer's summary, given to this protocol
+    monkeypatch.setattr(Deposition, "summarize_sweep",
+                        staticmethod(bauer_sweep.summarize_sweep))
     report = finish(sweep, out, say=lambda *a, **k: None)
     for name in ("bauer_vertical.md", "bauer_trace.md", "bauer_sweep.json",
                  "figures/hs_eta_vertical.png", "figures/hs_eta_trace.png"):

@@ -65,10 +65,11 @@ def _fit(point, measure):
 def rows(points, measure):
     """One row per (parameter, value) of the sweep (reference first): the combined
     eta, h_s [MPa] and e0 with their uncertainties over the seeds."""
-    from ..sweep import groups
-
+    grouped = {}
+    for p in points:           # by (parameter, value), in sweep order
+        grouped.setdefault(p.group, []).append(p)
     out = []
-    for members in groups(points):
+    for members in grouped.values():
         first = members[0]
         fits = [f for f in (_fit(p, measure) for p in members) if f is not None]
         row = {"parameter": first.parameter, "label": first.label, "value": first.value,

@@ -1,13 +1,16 @@
-"""From a validated Config to the engine's objects: materials, contact model, walls and
-the Simulation keyword arguments.  Builds nothing that compiles."""
+"""From a validated Config to what a run is made of: materials, contact model, walls,
+the container (protocols.Vessel), the protocol, the grains inserted into the container
+and the engine (engines.ENGINES[engine.kind]).  Compiles nothing."""
 import math
 
 import numpy as np
 
 from ..core.species import ContactModel, Material
 from ..core.state import State, sample_radii
-from ..core.walls import Cylinder, Motion, Periodic, Plane, box
-from ..engines.soft.timestep import time_step_report
+from ..core.walls import Cylinder, Motion, Periodic, Plane, Segment, box
+from ..engines import ENGINES, Setup
+from ..protocols import PROTOCOLS, Vessel
+from ..protocols.prepare import fill
 from .load import ConfigError
 from .models import BoxContainer, Config
 
@@ -27,7 +30,8 @@ def contact_model(config: Config):
 
 
 def walls(config: Config):
-    """The container's walls plus the extra planes, and the periodic directions."""
+    """The container's walls plus the extra planes and segments, and the periodic
+    directions."""
     w = config.walls
     default = config.material_index(w.material)
     out = []
@@ -44,44 +48,69 @@ def walls(config: Config):
         material = default if p.material is None else config.material_index(p.material)
         out.append(Plane(p.point, p.normal, material, Motion(**p.motion.model_dump()),
                          p.name, p.area))
+    for s in w.segments:
+        material = default if s.material is None else config.material_index(s.material)
+        out.append(Segment(tuple(s.start), tuple(s.end), material,
+                           Motion(**s.motion.model_dump()), s.name, s.area,
+                           (0.0, 0.0, 0.0) if s.edge is None else tuple(s.edge)))
     return out, [Periodic(a, lo, hi) for a, lo, hi in w.periodic]
 
 
-def simulation_kwargs(config: Config):
-    """Keyword arguments of Simulation other than the state."""
+def setup(config: Config, extra_walls=()):
+    """The engines.Setup of ``config``, with ``extra_walls`` (a protocol's) after the
+    container's and the config's own."""
     planes, periodic = walls(config)
-    i = config.engine
-    return {"materials": materials(config), "model": contact_model(config), "walls": planes,
-            "periodic": periodic, "gravity": config.run.gravity, "dt": i.dt, "skin": i.skin,
-            "integrator": i.integrator, "allow_large_dt": i.allow_large_dt,
-            "overlap_limit": i.overlap_limit, "check_interval": i.check_interval,
-            "orientations": i.orientations, "backend": config.run.backend}
+    return Setup(materials(config), contact_model(config), planes + list(extra_walls),
+                 periodic, config.run.gravity, config.run.backend)
+
+
+def vessel(config: Config):
+    """The container as protocols see it (protocols.Vessel)."""
+    box_ = config.walls.container
+    if isinstance(box_, BoxContainer):
+        return Vessel.box(box_.lo, box_.hi, box_.open_top, config.run.dim)
+    return Vessel.cylinder(box_.center, box_.radius, box_.height)
+
+
+def protocol(config: Config):
+    """The run's protocol (protocols.PROTOCOLS[protocol.kind]) in its container."""
+    made = PROTOCOLS[config.protocol.kind](config.protocol, vessel(config))
+    made.title = config.run.name
+    return made
+
+
+def engine(config: Config, state, made_protocol):
+    """The engine of ``config`` (engine.kind) around ``state``, with the walls of the
+    container, of the config and of ``made_protocol``."""
+    entry = ENGINES[config.engine.kind]
+    index = lambda name: config.material_index(name or config.walls.material)  # noqa: E731
+    return entry.build(state, setup(config, made_protocol.walls(index)), config.engine)
+
+
+def sample(config: Config, made_protocol, rng):
+    """The grains of ``config`` drawn with ``rng`` and put into the protocol's container
+    (prepare.fill, with the protocol's insertion settings): a State."""
+    radii = grain_radii(config, rng)
+    positions, radii, velocities = fill(made_protocol.vessel, radii, rng,
+                                        **config.protocol.fill_settings())
+    material = config.material_index(config.grains.material)
+    return State.create(positions, radii, config.materials[material].density,
+                        dim=config.run.dim, materials=np.full(radii.size, material),
+                        velocities=velocities)
 
 
 def check_time_step(config: Config):
-    """The time-step report for the smallest grain of the config; ConfigError naming
-    engine.dt when the step is above the safe fraction of the contact time."""
+    """The engine's check of a grain of the smallest diameter (engines.EngineKind.check:
+    the time-step report); ConfigError when the engine's settings cannot run it."""
     d = config.grains.diameter.smallest()
     grain = config.material_index(config.grains.material)
     mats = materials(config)
     state = State.create(np.zeros((1, 3)), [0.5 * d], mats[grain].density,
                          dim=config.run.dim, materials=[grain])
     try:
-        report = time_step_report(state, mats, contact_model(config), config.engine.dt,
-                                  config.engine.integrator)
+        return ENGINES[config.engine.kind].check(state, setup(config), config.engine)
     except (ValueError, ZeroDivisionError) as err:
-        raise ConfigError(f"cannot work out a time step: {err}") from None
-    dt = config.engine.dt
-    if dt is not None and report["fraction"] > report["max_fraction"] \
-            and not config.engine.allow_large_dt:
-        raise ConfigError(
-            f"engine.dt = {dt:.3g} s is {report['fraction']:.2f} of the "
-            f"{report['criterion']} {report['critical_time_s']:.3g} s of the smallest grain"
-            + (f" ({report['limit']})" if "limit" in report else "") + "; "
-            f"allowed: dt <= {report['max_fraction'] * report['critical_time_s']:.3g} s "
-            f"(suggested {report['suggested_dt_s']:.3g} s), or set "
-            "engine.allow_large_dt = true")
-    return report
+        raise ConfigError(str(err)) from None
 
 
 def grain_radii(config: Config, rng):

@@ -7,11 +7,16 @@ import typing
 import tomli_w
 from pydantic import BaseModel, ValidationError
 
+from .. import engines, protocols
 from .models import Config
 
 
 class ConfigError(ValueError):
     """A config that cannot run: the message names each field path, value and range."""
+
+
+# the sections whose class the registries choose by kind (schema.by_kind)
+KINDS = {"engine": engines.settings_classes, "protocol": protocols.base.settings_classes}
 
 
 def _models_in(annotation):
@@ -31,6 +36,9 @@ def _locate(loc):
         if owner is not None:
             info = owner.model_fields[part]
             models = _models_in(info.annotation)
+        elif len(path) == 1 and path[0] in KINDS and part in KINDS[path[0]]():
+            models = [KINDS[path[0]]()[part]]
+            continue
         elif info is not None and info.discriminator is not None:
             tagged = [m for m in models
                       if m.model_fields[info.discriminator].default == part]

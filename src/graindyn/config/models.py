@@ -7,47 +7,15 @@ with bounds; unknown keys are rejected; every number is a finite ``Float`` or ``
 a TOML file describe the same run.
 """
 import warnings
-from typing import Annotated, Literal
+from typing import Literal
 
-import numpy as np
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, field_validator, \
-    model_validator
-from pydantic_core import PydanticCustomError
+from pydantic import SerializeAsAny, field_validator, model_validator
 
-from ..engines.soft import integrators
+from .. import engines, protocols
 from ..physics import registry
+from ..schema import Float, Int, Section, by_kind, described
 
-# random sequential insertion jams at these solid fractions (Torquato, Random
-# Heterogeneous Materials, 2002): no random insertion can reach them
-RSA_JAMMING = {2: 0.547, 3: 0.3841}
-
-
-def _number(value):
-    """``value`` unchanged unless it is a boolean or a string, which pydantic would read
-    as a number (true as 1, "2650" as 2650.0) where the config means a number."""
-    if isinstance(value, (bool, np.bool_, str)):
-        raise PydanticCustomError("number_type", "Input should be a number, not {kind}",
-                                  {"kind": "a string" if isinstance(value, str)
-                                   else "a boolean"})
-    return value
-
-
-# the numbers of every section, also inside tuples, lists and dicts; finite by
-# Section's allow_inf_nan=False
-Float = Annotated[float, BeforeValidator(_number)]
-Int = Annotated[int, BeforeValidator(_number)]
-
-
-class Section(BaseModel):
-    """A config section: unknown keys are errors, assignments are validated, and numbers
-    are finite: no field means inf or nan (a field that may be absent is None)."""
-
-    model_config = ConfigDict(extra="forbid", validate_assignment=True, allow_inf_nan=False)
-
-
-def _f(default=..., doc="", **bounds):
-    """A field with its unit and range written into its description."""
-    return Field(default, description=doc, **bounds)
+_f = described
 
 
 class RunSection(Section):
@@ -220,17 +188,63 @@ class CylinderContainer(Section):
     center: tuple[Float, Float] = _f((0.0, 0.0), "axis position (x, y) [m]; the axis is z")
 
 
+class SegmentSection(Section):
+    """A finite wall (core.walls.Segment): in 2D the line segment from start to end in
+    the x-y plane, in 3D the rectangle with corners start, end, end + edge, start + edge;
+    two-sided, its edges and ends round."""
+
+    name: str = _f(..., "wall name (used in the outputs)")
+    start: list[Float] = _f(..., "first end point [m] (3D: a corner of the rectangle); "
+                            "2 or 3 components, z = 0 in 2D", min_length=2, max_length=3)
+    end: list[Float] = _f(..., "second end point [m] (3D: the corner next to start); "
+                          "2 or 3 components, z = 0 in 2D", min_length=2, max_length=3)
+    edge: tuple[Float, Float, Float] | None = _f(
+        None, "3D only: the rectangle's second edge [m], from start, perpendicular to "
+        "end - start (required in 3D)")
+    material: str | None = _f(None, "wall material; default: walls.material")
+    area: Float | None = _f(None, "area [m^2] (2D: length [m]) for the stress; default "
+                            "the segment's own; > 0", gt=0)
+    motion: MotionSection = _f(MotionSection(), "prescribed motion")
+
+    @model_validator(mode="after")
+    def _not_degenerate(self):
+        start, end = (list(p) + [0.0] * (3 - len(p)) for p in (self.start, self.end))
+        a = [e - s for s, e in zip(start, end)]
+        la = sum(x * x for x in a) ** 0.5
+        if la == 0:
+            raise ValueError(f"segment {self.name!r}: start and end coincide ({self.start})")
+        if self.edge is not None:
+            lb = sum(x * x for x in self.edge) ** 0.5
+            if lb == 0:
+                raise ValueError(f"segment {self.name!r}: edge must be non-zero")
+            if abs(sum(x * y for x, y in zip(a, self.edge))) > 1e-9 * la * lb:
+                raise ValueError(f"segment {self.name!r}: edge {self.edge} must be "
+                                 f"perpendicular to end - start {a} (a rectangle)")
+        return self
+
+    def check_dim(self, dim, where):
+        """ValueError unless the segment fits a ``dim``-D run (``where``: its path)."""
+        if dim == 2 and (self.edge is not None or any(
+                len(p) == 3 and p[2] != 0 for p in (self.start, self.end))):
+            raise ValueError(f"{where}: a 2D segment lies in the x-y plane: z = 0 and no "
+                             "edge")
+        if dim == 3 and (self.edge is None or len(self.start) != 3 or len(self.end) != 3):
+            raise ValueError(f"{where}: a 3D segment is a rectangle: give start and end "
+                             "with 3 components and its edge")
+
+
 class WallsSection(Section):
     material: str = _f(..., "default wall material (one of [[materials]])")
     container: BoxContainer | CylinderContainer | None = _f(
         None, "the container: a box or a vertical cylinder with a bottom at z = 0",
         discriminator="kind")
     planes: list[PlaneSection] = _f([], "additional planes")
+    segments: list[SegmentSection] = _f(
+        [], "finite walls: line segments (2D) or rectangles (3D), two-sided")
     periodic: list[tuple[Int, Float, Float]] = _f(
         [], "periodic directions as (axis 0..2, lo [m], hi [m])")
 
 
-ENGINES = ("soft",)      # the engine kinds a config can name; engine.kind picks one
 # where the fields of a section that older configs had now live
 MOVED = {"integrator": ("engine", {"name": "integrator"})}
 
@@ -244,89 +258,6 @@ def moved(path):
         return None
     target, renamed = MOVED[section]
     return f"{target}.{renamed.get(field, field)}" if field else target
-
-
-class SoftEngine(Section):
-    """The time-driven soft-particle engine (Simulation): grains overlap a little, the
-    contact laws give forces, an explicit integrator advances them by a fixed step."""
-
-    kind: Literal["soft"] = _f("soft", "engine: soft (time-driven soft particles)")
-    integrator: str = _f("velocity_verlet", "integrator (see graindyn info)")
-    dt: Float | None = _f(None, "time step [s]; default: the suggested step; (0, 1]", gt=0,
-                          le=1)
-    allow_large_dt: bool = _f(False, "accept a step above the safe fraction of the contact "
-                              "time")
-    skin: Float | None = _f(None, "neighbour-list skin [m]; default 0.2 mean radius", gt=0)
-    check_interval: Int = _f(100, "steps between NaN/overlap/stop checks [-]; 1..1e6",
-                             ge=1, le=1_000_000)
-    overlap_limit: Float = _f(0.2, "stop when an overlap exceeds this fraction of the "
-                              "smaller radius [-]; (0, 1]", gt=0, le=1)
-    orientations: bool = _f(True, "turn the grains' orientations every step; false "
-                            "leaves them as they are (CPU only; they act on nothing, and "
-                            "turning costs about a tenth of a step)")
-
-    @field_validator("integrator")
-    @classmethod
-    def _known(cls, name):
-        integrators.integrator_id(name)
-        return name
-
-
-class SettleFields(Section):
-    """How grains are inserted into the container and settled under gravity: the first
-    phase of every protocol."""
-
-    insertion: Literal["random", "lattice"] = _f(
-        "random", "random non-overlapping insertion, or a loose lattice with random "
-        "velocities (Perez)")
-    packing_fraction: Float = _f(0.2, "solid fraction of the insertion region [-] (random "
-                                 "insertion); (0, RSA jamming: 0.384 in 3D, 0.547 in 2D)",
-                                 gt=0, lt=0.547)
-    lattice_gap: Float = _f(0.05, "gap between lattice sites [fraction of d_max]; [0, 10]",
-                            ge=0, le=10)
-    lattice_speed: Float = _f(0.0, "random initial speed on the lattice [m/s]; >= 0", ge=0)
-    criterion: Literal["energy_ratio", "max_speed"] = _f(
-        "energy_ratio", "equilibrium: E_kin/E_pot <= threshold (Karrech et al.) or the "
-        "largest speed below threshold [m/s]")
-    threshold: Float = _f(1e-6, "value of the equilibrium criterion; > 0", gt=0)
-    max_time: Float = _f(1.0, "longest settling time [s] of simulated time; (0, 1e4]",
-                         gt=0, le=1e4)
-
-
-class DepositionProtocol(SettleFields):
-    """Insert grains in the container and settle them under gravity."""
-
-    kind: Literal["deposition"] = "deposition"
-
-
-class OedometerProtocol(SettleFields):
-    """The oedometric test of Oquendo et al. Sec. 4: settle, then load the sample through
-    a stress-controlled piston on a ladder p0, factor p0, ... up to p_max (optionally back
-    down), relaxing at each level; fit Bauer's law (Oquendo Eq. 19)."""
-
-    kind: Literal["oedometer"] = "oedometer"
-    p0: Float = _f(12.5e3, "first vertical stress on the piston [Pa]; > 0", gt=0)
-    p_max: Float = _f(3.2e6, "largest vertical stress [Pa]; >= p0", gt=0)
-    factor: Float = _f(2.0, "stress ratio between levels [-] (2: doubling); (1, 10]", gt=1,
-                       le=10)
-    unload: bool = _f(False, "after p_max, unload by the same factor back to p0")
-    piston_material: str | None = _f(None, "piston material; default: walls.material")
-    servo_time: Float = _f(1e-3, "servo time constant tau [s]: the piston closes its force "
-                           "error no faster than exp(-t/tau); (0, 10]", gt=0, le=10)
-    max_speed: Float = _f(0.01, "largest piston speed [m/s]; (0, 10]", gt=0, le=10)
-    force_tolerance: Float = _f(0.01, "a level is at rest when |F_piston - F_target| <= "
-                                "this fraction of F_target ...; (0, 0.5]", gt=0, le=0.5)
-    rest_ratio: Float = _f(1e-4, "... and kinetic <= this fraction of the elastic energy of "
-                           "the contacts [-]; > 0", gt=0)
-    level_max_time: Float = _f(0.05, "longest relaxation per level [s] of simulated time "
-                               "(the level is then recorded as not at rest); (0, 100]",
-                               gt=0, le=100)
-
-    @model_validator(mode="after")
-    def _ladder(self):
-        if self.p_max < self.p0:
-            raise ValueError(f"protocol.p_max = {self.p_max} Pa is below p0 = {self.p0} Pa")
-        return self
 
 
 class OutputSection(Section):
@@ -350,20 +281,18 @@ class Config(Section):
                                           min_length=1)
     contact: ContactSection = _f(ContactSection(), "contact law, one per mode")
     walls: WallsSection
-    engine: SoftEngine = _f(SoftEngine(), "the engine that advances the grains (kind: "
-                            "soft) and its own settings (integrator, time step, skin)")
-    protocol: DepositionProtocol | OedometerProtocol = _f(
-        DepositionProtocol(), "what the run does (kind: deposition, the default, or "
-        "oedometer)", discriminator="kind")
+    engine: SerializeAsAny[Section] = _f(
+        engines.ENGINES["soft"].settings(), "the engine that advances the grains and its "
+        "own settings; kind: one of engines.ENGINES (graindyn info), default soft")
+    protocol: SerializeAsAny[Section] = _f(
+        protocols.PROTOCOLS["deposition"].settings(), "what the run does; kind: one of "
+        "protocols.PROTOCOLS (graindyn info), default deposition")
     output: OutputSection = _f(OutputSection(), "what the run writes")
 
-    @model_validator(mode="before")
-    @classmethod
-    def _default_protocol_kind(cls, data):
-        if isinstance(data, dict) and isinstance(data.get("protocol"), dict) \
-                and "kind" not in data["protocol"]:
-            data = {**data, "protocol": {"kind": "deposition", **data["protocol"]}}
-        return data
+    _engine = field_validator("engine", mode="wrap")(
+        classmethod(by_kind(engines.settings_classes, "engine", "soft")))
+    _protocol = field_validator("protocol", mode="wrap")(
+        classmethod(by_kind(protocols.base.settings_classes, "protocol", "deposition")))
 
     @model_validator(mode="before")
     @classmethod
@@ -388,10 +317,6 @@ class Config(Section):
                              + ")" if renamed else ""), DeprecationWarning, stacklevel=2)
             data = {**{k: v for k, v in data.items() if k != section},
                     target: moved_fields}
-        engine = data.get("engine")
-        if isinstance(engine, dict) and engine.get("kind", "soft") not in ENGINES:
-            raise ValueError(f"engine.kind = {engine['kind']!r} is not an engine of this "
-                             f"version; engines: {', '.join(ENGINES)}")
         return data
 
     @model_validator(mode="after")
@@ -403,8 +328,12 @@ class Config(Section):
                 ("walls.material", self.walls.material)]
         used += [(f"walls.planes.{k}.material", p.material)
                  for k, p in enumerate(self.walls.planes) if p.material is not None]
-        if getattr(self.protocol, "piston_material", None) is not None:
-            used.append(("protocol.piston_material", self.protocol.piston_material))
+        used += [(f"walls.segments.{k}.material", s.material)
+                 for k, s in enumerate(self.walls.segments) if s.material is not None]
+        for k, s in enumerate(self.walls.segments):
+            s.check_dim(self.run.dim, f"walls.segments.{k}")
+        protocol = protocols.PROTOCOLS[self.protocol.kind]
+        used += protocol.materials_named(self.protocol)
         used += [(f"contact.overrides.{k}.materials", m)
                  for k, o in enumerate(self.contact.overrides) for m in o.materials]
         for where, name in used:
@@ -426,15 +355,7 @@ class Config(Section):
         if box is None:
             raise ValueError(f"walls.container: the {self.protocol.kind} protocol needs a "
                              "container (box or cylinder)")
-        if self.protocol.kind == "oedometer" and (
-                dim != 3 or isinstance(box, BoxContainer) and not box.open_top):
-            raise ValueError("the oedometer protocol needs run.dim = 3 and a cylinder or an "
-                             "open-top box (the piston closes it)")
-        phi = self.protocol.packing_fraction
-        if self.protocol.insertion == "random" and phi >= RSA_JAMMING[dim]:
-            raise ValueError(f"protocol.packing_fraction = {phi}: random insertion cannot "
-                             f"reach the RSA jamming fraction {RSA_JAMMING[dim]} in {dim}D; "
-                             "use a smaller value (0.2 is quick)")
+        protocol.cross_check(self)
         for axis, lo, hi in self.walls.periodic:
             if axis not in range(dim) or not hi > lo:
                 raise ValueError(f"walls.periodic: ({axis}, {lo}, {hi}) needs axis in "

@@ -32,6 +32,15 @@ ENERGIES = {
 }
 
 
+class SimulationError(RuntimeError):
+    """A run stopped because the physics broke down (NaN, excessive overlap)."""
+
+
+class OverlapError(SimulationError):
+    """Some overlap exceeded ``overlap_limit`` of the smaller radius: the state is finite,
+    but the load is beyond what the contact law describes."""
+
+
 def _whole_force(contacts):
     """(K, 3) [N] the whole force of each contact on its grain i (or grain):
     normal_force n + tangential_force."""
@@ -125,7 +134,8 @@ class Engine(Protocol):
         between : callback(engine) run at each pause of the engine (at least as often as
           ``every`` fires); returning True stops the run.
         Returns "done", "condition" (``until`` held) or "stopped" (``between``); raises
-        SimulationError when the physics breaks down."""
+        core.engine.SimulationError when the physics breaks down (OverlapError: an
+        overlap beyond what the contact law describes, for engines that let grains overlap)."""
 
     def contacts(self) -> Contacts:
         """The touching grain pairs now (Contacts)."""

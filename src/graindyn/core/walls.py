@@ -1,9 +1,13 @@
-"""Walls and boundaries: planes, axis-aligned boxes, the inside of a cylinder, periodic
-directions; prescribed wall motion.  Walls are geometry only: their contact forces come
-from the same physics.contact.contact_force as grain pairs, with R_j = infinity.
+"""Walls and boundaries: planes, axis-aligned boxes, the inside of a cylinder, finite
+segments (2D) and rectangles (3D), periodic directions; prescribed wall motion.  Walls
+are geometry only: their contact forces come from the same
+physics.contact.contact_force as grain pairs, with R_j = infinity.
 
-Kernel layout (``Walls.arrays``): kind (W,) 0 plane / 1 cylinder inside;
-geometry (W, 7) = origin (3), unit normal or axis (3), radius; motion_kind (W,)
+Kernel layout (``Walls.arrays``): kind (W,) 0 plane / 1 cylinder inside / 2 segment;
+geometry (W, 10) (GEOMETRY_WIDTH): plane: origin (3), unit normal (3), 0, 0 0 0;
+cylinder: a point of the axis (3), unit axis (3), radius [m], 0 0 0; segment: start
+(corner) (3), first edge end - start (3) [m], 0, second edge (3) [m] (0 0 0 for a line
+segment); motion_kind (W,)
 0 fixed / 1 constant velocity / 2 sinusoid / 3 servo; motion (W, 8) = unit direction
 (3), then speed [m/s], amplitude [m], frequency [Hz], phase [rad] (velocity, sinusoid)
 or target force [N], gain [m/(N s)], largest speed [m/s], unused (servo), and the start
@@ -24,7 +28,8 @@ import numpy as np
 
 from .._jit import scalar, kernel
 
-PLANE, CYLINDER = 0, 1
+PLANE, CYLINDER, SEGMENT = 0, 1, 2
+GEOMETRY_WIDTH = 10        # columns of Walls.geometry (module docstring)
 FIXED, VELOCITY, SINUSOID, SERVO = 0, 1, 2, 3
 
 
@@ -136,6 +141,69 @@ class Cylinder:
                                    float(self.radius)])
 
 
+def _point(v, what):
+    """A finite point or vector [m] of 2 (x, y; z = 0) or 3 components, as a 3-vector."""
+    v = np.asarray(v, dtype=np.float64)
+    if v.shape not in ((2,), (3,)) or not np.all(np.isfinite(v)):
+        raise ValueError(f"{what} must be a finite vector of 2 or 3 components [m], got {v}")
+    return np.append(v, 0.0) if v.size == 2 else v
+
+
+@dataclass
+class Segment:
+    """A finite wall: a thin rigid plate, which grains touch from either side.
+
+    2D: the line segment from ``start`` to ``end`` [m] in the x-y plane (z = 0; two
+    components may be given).  3D: with ``edge`` [m] non-zero, the rectangle with corners
+    start, end, end + edge, start + edge, i.e. spanned by the edges end - start and
+    ``edge``, which must be perpendicular.  (``edge`` zero in 3D: a thin rod.)
+
+    Contact: the distance is from the grain centre to the closest point of the segment
+    (rectangle), edges and end points (corners) included, and the normal points from that
+    point to the centre.  So the wall is two-sided, of zero thickness, and rounded at its
+    ends: a grain at the lip of an orifice between two segments touches the end point,
+    with the normal along the line from the end point to its centre, and a grain passes
+    a gap between two segments wider than its diameter.  Like a plate of any thickness,
+    it holds grains only while their overlap stays below their radius: a grain driven
+    through its middle comes out on the other side.
+
+    area [m^2] (2D: length [m] per unit depth) turns the wall force into a stress:
+    |end - start| (2D) or |end - start| |edge| (3D) when None.  The normal force
+    (Walls.normal_force) is the magnitude of the force of the grains on it, as for the
+    cylinder: a two-sided wall has no inward normal.
+    """
+
+    start: tuple
+    end: tuple
+    material: int = 0
+    motion: Motion = field(default_factory=Motion)
+    name: str = "segment"
+    area: float | None = None
+    edge: tuple = (0.0, 0.0, 0.0)
+
+    def __post_init__(self):
+        a, b = self._edges()
+        if self.area is None:
+            la = float(np.linalg.norm(a))
+            self.area = la if not b.any() else la * float(np.linalg.norm(b))
+
+    def _edges(self):
+        start = _point(self.start, "segment start")
+        a = _point(self.end, "segment end") - start
+        b = _point(self.edge, "segment edge")
+        la, lb = np.linalg.norm(a), np.linalg.norm(b)
+        if la == 0:
+            raise ValueError(f"segment {self.name!r}: start and end coincide ({start})")
+        if lb > 0 and abs(a @ b) > 1e-9 * la * lb:
+            raise ValueError(f"segment {self.name!r}: edge {b} must be perpendicular to "
+                             f"end - start {a} (the wall is a rectangle)")
+        return a, b
+
+    def row(self):
+        a, b = self._edges()
+        return SEGMENT, np.array([*_point(self.start, "segment start"), *a, 0.0, *b])
+
+
 def box(lo, hi, material=0, open_top=True, dim=3):
     """The planes of an axis-aligned box [lo, hi] [m], inward normals, named by face.
 
@@ -181,12 +249,13 @@ class Walls:
         self.walls = list(walls)
         w = len(self.walls)
         self.kind = np.zeros(w, np.int64)
-        self.geometry = np.zeros((max(w, 1), 7))[:w]
+        self.geometry = np.zeros((max(w, 1), GEOMETRY_WIDTH))[:w]
         self.motion_kind = np.zeros(w, np.int64)
         self.motion = np.zeros((w, 8))
         self.material = np.zeros(w, np.int32)
         for k, wall in enumerate(self.walls):
-            self.kind[k], self.geometry[k] = wall.row()
+            self.kind[k], row = wall.row()
+            self.geometry[k, :row.size] = row      # the unused columns stay 0
             self.motion_kind[k], self.motion[k] = wall.motion.row()
             self.material[k] = wall.material
         self.offset = np.zeros((w, 3))
@@ -219,6 +288,10 @@ class Walls:
         safe = np.where(rho > 0, rho, 1.0)[:, None]
         dist = np.where(plane, along, g[:, 6] - rho)
         normal = np.where(plane[:, None], axis, -perp / safe)
+        segment = self.kind[ids] == SEGMENT
+        if segment.any():
+            dist[segment], normal[segment] = _segment_distances(
+                rel[segment], axis[segment], g[segment, 7:10], along[segment])
         return dist, normal
 
     def index(self, name):
@@ -247,7 +320,8 @@ class Walls:
         return wrapped
 
     def normal_force(self, k):
-        """Force [N] the grains push on wall k along its inward normal (plane) or outward."""
+        """Force [N] the grains push on wall k along its inward normal (plane), or its
+        magnitude (cylinder: outward; segment: either side)."""
         return float(-self.force[k] @ self.geometry[k, 3:6]) if self.kind[k] == PLANE \
             else float(np.linalg.norm(self.force[k]))
 
@@ -257,11 +331,33 @@ class Walls:
         return None if a is None else self.normal_force(k) / a
 
 
+def _segment_distances(rel, a, b, along):
+    """Distance [m] from segments (rectangles) of edges a, b (K, 3) to points at rel
+    (K, 3) from their start, rel . a given, and the unit normals: wall_distance's segment
+    branch."""
+    s = np.clip(along / np.einsum("ka,ka->k", a, a), 0.0, 1.0)
+    bb = np.einsum("ka,ka->k", b, b)
+    t = np.where(bb > 0, np.clip(np.einsum("ka,ka->k", rel, b) / np.where(bb > 0, bb, 1.0),
+                                 0.0, 1.0), 0.0)
+    r = rel - s[:, None] * a - t[:, None] * b
+    rho = np.linalg.norm(r, axis=1)
+    on = rho == 0
+    if on.any():                     # on the wall: its face normal a x b (segment: a turned)
+        ao, bo = a[on], b[on]
+        face = np.where((bb[on] > 0)[:, None], np.cross(ao, bo),
+                        np.stack([-ao[:, 1], ao[:, 0], np.zeros(len(ao))], axis=1))
+        size = np.linalg.norm(face, axis=1)
+        r[on] = np.where((size > 0)[:, None], face / np.where(size > 0, size, 1.0)[:, None],
+                         [1.0, 0.0, 0.0])
+    return rho, r / np.where(on, 1.0, rho)[:, None]
+
+
 @scalar
 def wall_distance(kind, geometry, offset, w, x, y, z):
     """Distance [m] from the surface of wall w to a point, and the unit normal pointing
     from the wall to the point (plane: signed distance on the normal side; cylinder:
-    radius minus the distance to the axis)."""
+    radius minus the distance to the axis; segment: distance to its closest point,
+    edges and ends included, >= 0 on either side)."""
     px = x - geometry[w, 0] - offset[w, 0]
     py = y - geometry[w, 1] - offset[w, 1]
     pz = z - geometry[w, 2] - offset[w, 2]
@@ -271,6 +367,33 @@ def wall_distance(kind, geometry, offset, w, x, y, z):
     along = px * ax + py * ay + pz * az
     if kind[w] == PLANE:
         return along, ax, ay, az
+    if kind[w] == SEGMENT:     # (ax, ay, az) is the edge a; closest start + s a + t b
+        s = min(max(along / (ax * ax + ay * ay + az * az), 0.0), 1.0)
+        bx = geometry[w, 7]
+        by = geometry[w, 8]
+        bz = geometry[w, 9]
+        bb = bx * bx + by * by + bz * bz
+        t = 0.0
+        if bb > 0.0:
+            t = min(max((px * bx + py * by + pz * bz) / bb, 0.0), 1.0)
+        rx = px - s * ax - t * bx
+        ry = py - s * ay - t * by
+        rz = pz - s * az - t * bz
+        rho = math.sqrt(rx * rx + ry * ry + rz * rz)
+        if rho == 0.0:         # on the wall: its face normal a x b (segment: a turned)
+            nx = ay * bz - az * by
+            ny = az * bx - ax * bz
+            nz = ax * by - ay * bx
+            if bb == 0.0:
+                nx = -ay
+                ny = ax
+                nz = 0.0
+            size = math.sqrt(nx * nx + ny * ny + nz * nz)
+            if size == 0.0:
+                return 0.0, 1.0, 0.0, 0.0
+            return 0.0, nx / size, ny / size, nz / size
+        inverse = 1.0 / rho
+        return rho, rx * inverse, ry * inverse, rz * inverse
     rx = px - along * ax
     ry = py - along * ay
     rz = pz - along * az

@@ -119,14 +119,15 @@ class Series:
                 writer.writerow(self.columns)
             writer.writerow([repr(float(row[c])) for c in self.columns])
 
-    def truncate(self, step):
-        """Drop rows after ``step`` (column "step [-]"): used when resuming."""
+    def truncate(self, time):
+        """Drop the rows after simulated ``time`` [s] (column "time [s]", written as
+        repr of the float: read back exactly): used when resuming."""
         if not self.path.exists():
             return
         with self.path.open(newline="") as f:
             rows = list(csv.reader(f))
-        k = rows[0].index("step [-]")
-        keep = [rows[0]] + [r for r in rows[1:] if float(r[k]) <= step]
+        k = rows[0].index("time [s]")
+        keep = [rows[0]] + [r for r in rows[1:] if float(r[k]) <= time]
         with self.path.open("w", newline="") as f:
             csv.writer(f).writerows(keep)
 

@@ -14,7 +14,7 @@ import xml.etree.ElementTree as ET
 import meshio
 import numpy as np
 
-from ..core.walls import PLANE
+from ..core.walls import PLANE, SEGMENT
 
 
 def grains_mesh(state):
@@ -38,7 +38,8 @@ def _frame(normal):
 
 def walls_mesh(walls, lo, hi, segments=48):
     """The walls as quads (planes: a square as wide as the box [lo, hi] [m] around the
-    grains; cylinders: a tube between the box's ends along the axis)."""
+    grains; cylinders: a tube between the box's ends along the axis; segments: their
+    rectangle, a 2D segment as a strip across z)."""
     points, quads, ids = [], [], []
     centre = 0.5 * (lo + hi)
     size = float(np.linalg.norm(hi - lo)) or 1.0
@@ -52,6 +53,15 @@ def walls_mesh(walls, lo, hi, segments=48):
             u, v = _frame(axis)
             for su, sv in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
                 points.append(foot + 0.5 * size * (su * u + sv * v))
+            quads.append([base, base + 1, base + 2, base + 3])
+            ids.append(w)
+            continue
+        if walls.kind[w] == SEGMENT:
+            edge = g[7:10]
+            if not np.any(edge):          # a 2D segment: a strip one box deep in z
+                origin = origin - np.array([0.0, 0.0, 0.5 * size])
+                edge = np.array([0.0, 0.0, size])
+            points.extend((origin, origin + axis, origin + axis + edge, origin + edge))
             quads.append([base, base + 1, base + 2, base + 3])
             ids.append(w)
             continue
@@ -84,9 +94,10 @@ def contacts_mesh(engine):
 
 
 class VtkSeries:
-    """The snapshots of a run in ``folder``: ``write(sim)`` adds one of each series and
-    rewrites the .pvd collections.  ``entries`` ((step, time) list) is saved in
-    checkpoints, so a resumed run drops the snapshots written after its checkpoint."""
+    """The snapshots of a run in ``folder``: ``write(engine)`` adds one of each series
+    (grains_000003.vtu: the fourth snapshot) and rewrites the .pvd collections.
+    ``entries`` ((number, time [s]) list) is saved in checkpoints, so a resumed run
+    drops the snapshots written after its checkpoint."""
 
     def __init__(self, folder, contacts=False, entries=()):
         self.folder = pathlib.Path(folder)
@@ -95,22 +106,23 @@ class VtkSeries:
         self.entries = [tuple(e) for e in entries]
         self.series = ["grains", "walls"] + (["contacts"] if contacts else [])
 
-    def write(self, sim):
-        """Snapshot of the current state."""
-        s = sim.state
-        if self.entries and self.entries[-1][0] == sim.step:
+    def write(self, engine):
+        """Snapshot of the current state (none if one was taken at this time)."""
+        s = engine.state
+        if self.entries and self.entries[-1][1] == engine.time:
             return
+        number = self.entries[-1][0] + 1 if self.entries else 0
         reach = s.radii.max()
         lo = s.positions.min(axis=0) - reach
         hi = s.positions.max(axis=0) + reach
-        meshes = {"grains": grains_mesh(s), "walls": walls_mesh(sim.walls, lo, hi)}
+        meshes = {"grains": grains_mesh(s), "walls": walls_mesh(engine.walls, lo, hi)}
         if self.contacts:
-            meshes["contacts"] = contacts_mesh(sim)
+            meshes["contacts"] = contacts_mesh(engine)
         for name, mesh in meshes.items():
-            if name == "walls" and len(sim.walls) == 0:
+            if name == "walls" and len(engine.walls) == 0:
                 continue
-            meshio.write(self.folder / f"{name}_{sim.step:010d}.vtu", mesh, binary=True)
-        self.entries.append((sim.step, sim.time))
+            meshio.write(self.folder / f"{name}_{number:06d}.vtu", mesh, binary=True)
+        self.entries.append((number, engine.time))
         self.write_collections()
 
     def write_collections(self):
@@ -118,17 +130,18 @@ class VtkSeries:
         for name in self.series:
             root = ET.Element("VTKFile", type="Collection", version="0.1")
             coll = ET.SubElement(root, "Collection")
-            for step, time in self.entries:
-                file = f"{name}_{step:010d}.vtu"
+            for number, time in self.entries:
+                file = f"{name}_{number:06d}.vtu"
                 if (self.folder / file).exists():
                     ET.SubElement(coll, "DataSet", timestep=repr(float(time)), part="0",
                                   file=file)
             ET.ElementTree(root).write(self.folder / f"{name}.pvd", xml_declaration=True)
 
-    def truncate(self, step):
-        """Forget (and delete) snapshots after ``step`` (used when resuming)."""
+    def truncate(self, time):
+        """Forget (and delete) the snapshots after simulated ``time`` [s] (resuming)."""
+        self.entries = [e for e in self.entries if e[1] <= time]
+        kept = {number for number, _ in self.entries}
         for path in self.folder.glob("*_*.vtu"):
-            if int(path.stem.rsplit("_", 1)[1]) > step:
+            if int(path.stem.rsplit("_", 1)[1]) not in kept:
                 path.unlink()
-        self.entries = [e for e in self.entries if e[0] <= step]
         self.write_collections()

@@ -35,18 +35,22 @@ measures: the vertical stress on the piston (Oquendo Eq. 19, p) and the trace of
 stress, sigma_v + 2 sigma_lateral = 3 p_s (Bauer's original mean stress; the
 abstract's "3p").
 """
-import math
+from typing import Literal
 
 import numpy as np
+from pydantic import model_validator
 
+from ..analysis import bauer_sweep
 from ..analysis.bauer import BauerFitError, fit_bauer
 from ..analysis.energy import energy_budget
 from ..analysis.packing import coordination_number
-from ..config import build
-from ..config.models import BoxContainer, Config
+from ..core.triggers import Periodic
 from ..core.walls import Motion, Plane
-from ..engines.soft.simulation import OverlapError, Simulation
-from .deposition import Deposition, save_figure
+from ..core.engine import OverlapError
+from ..schema import Float, described as _f
+from .base import Phase, Protocol, register
+from .deposition import save_figure
+from .phases import Settle, SettleSettings
 
 PISTON = "piston"
 MEASURES = {"vertical": "sigma_top_Pa", "trace": "trace_Pa"}
@@ -67,211 +71,73 @@ def ladder(p0, p_max, factor, unload=False):
     return [(p, "loading") for p in up] + [(p, "unloading") for p in down]
 
 
-class Oedometer(Deposition):
+class OedometerSettings(SettleSettings):
+    """The oedometric test of Oquendo et al. Sec. 4: settle, then load the sample through
+    a stress-controlled piston on a ladder p0, factor p0, ... up to p_max (optionally back
+    down), relaxing at each level; fit Bauer's law (Oquendo Eq. 19)."""
+
+    kind: Literal["oedometer"] = "oedometer"
+    p0: Float = _f(12.5e3, "first vertical stress on the piston [Pa]; > 0", gt=0)
+    p_max: Float = _f(3.2e6, "largest vertical stress [Pa]; >= p0", gt=0)
+    factor: Float = _f(2.0, "stress ratio between levels [-] (2: doubling); (1, 10]", gt=1,
+                       le=10)
+    unload: bool = _f(False, "after p_max, unload by the same factor back to p0")
+    piston_material: str | None = _f(None, "piston material; default: walls.material")
+    servo_time: Float = _f(1e-3, "servo time constant tau [s]: the piston closes its force "
+                           "error no faster than exp(-t/tau); (0, 10]", gt=0, le=10)
+    max_speed: Float = _f(0.01, "largest piston speed [m/s]; (0, 10]", gt=0, le=10)
+    force_tolerance: Float = _f(0.01, "a level is at rest when |F_piston - F_target| <= "
+                                "this fraction of F_target ...; (0, 0.5]", gt=0, le=0.5)
+    rest_ratio: Float = _f(1e-4, "... and kinetic <= this fraction of the elastic energy of "
+                           "the contacts [-]; > 0", gt=0)
+    level_max_time: Float = _f(0.05, "longest relaxation per level [s] of simulated time "
+                               "(the level is then recorded as not at rest); (0, 100]",
+                               gt=0, le=100)
+
+    @model_validator(mode="after")
+    def _ladder(self):
+        if self.p_max < self.p0:
+            raise ValueError(f"protocol.p_max = {self.p_max} Pa is below p0 = {self.p0} Pa")
+        return self
+
+
+@register
+class Oedometer(Protocol):
     """Oedometric compression of a settled sample under a stress-controlled piston."""
 
-    phases = ("settle", "load")
+    kind = "oedometer"
+    settings = OedometerSettings
+    summary = ("settle, then load through a stress-controlled piston level by level and "
+               "fit Bauer's law (Oquendo et al. Sec. 4)")
+    summarize_sweep = staticmethod(bauer_sweep.summarize_sweep)
 
-    def __init__(self, config: Config):
-        super().__init__(config)
-        p = config.protocol
-        self.levels = ladder(p.p0, p.p_max, p.factor, p.unload)
+    def __init__(self, settings, vessel):
+        super().__init__(settings, vessel)
+        self.phases = (Settle(settings, vessel), Load(self))
+
+    @classmethod
+    def cross_check(cls, config):
+        settings = config.protocol
+        settings.check_dim(config.run.dim)
         box = config.walls.container
-        self.ceiling = box.hi[-1] if isinstance(box, BoxContainer) else box.height
-        self.side_walls = ("xlo", "xhi", "ylo", "yhi") if isinstance(box, BoxContainer) \
-            else ("side",)
-        self.perimeter = 2 * float(np.sum(np.subtract(box.hi, box.lo)[:2])) \
-            if isinstance(box, BoxContainer) else 2 * math.pi * box.radius
+        if config.run.dim != 3 or getattr(box, "kind", None) == "box" and not box.open_top:
+            raise ValueError("the oedometer protocol needs run.dim = 3 and a cylinder or an "
+                             "open-top box (the piston closes it)")
 
-    def build(self, state):
-        """The Simulation with the container's walls plus the piston at the top."""
-        kwargs = build.simulation_kwargs(self.config)
-        c, box = self.config, self.config.walls.container
-        material = c.material_index(c.protocol.piston_material or c.walls.material)
-        center = tuple(0.5 * (np.asarray(box.lo[:2]) + box.hi[:2])) \
-            if isinstance(box, BoxContainer) else box.center
-        piston = Plane((*center, self.ceiling), (0.0, 0.0, -1.0), material, name=PISTON,
-                       area=self.cross_section)
-        kwargs["walls"] = kwargs["walls"] + [piston]
-        return Simulation(state, **kwargs)
+    @classmethod
+    def materials_named(cls, settings):
+        return [("protocol.piston_material", settings.piston_material)] \
+            if settings.piston_material is not None else []
 
-    def phase_duration(self, name):
-        """Longest simulated time [s] of a phase (for the progress bar)."""
-        if name == "load":
-            return self.config.protocol.level_max_time * len(self.levels)
-        return super().phase_duration(name)
-
-    # ------------------------------------------------------------------ the load phase
-    def run_phase(self, phase, sim, state, **run):
-        if phase == "settle":
-            status = super().run_phase(phase, sim, state, **run)
-            if status != "stopped":
-                state["report"] = super().results(sim, {"settle": state})
-            return status
-        return self._load(sim, state, **run)
-
-    def _load(self, sim, state, every=(), between=None, max_chunk=20000):
-        p = self.config.protocol
-        k = sim.walls.index(PISTON)
-        if "level" not in state:
-            top = float(np.max(sim.state.positions[:, 2] + sim.state.radii))
-            offset = sim.walls.offset[k].copy()
-            offset[2] = top + 1e-3 * float(sim.state.radii.min()) - sim.walls.geometry[k, 2]
-            sim.place_wall(k, offset)
-            state.update(level=0, rows=[])
-            self._arm(sim, state, k)
-        chunk = int(max(1, min(max_chunk, p.servo_time / (4 * sim.dt))))
-        interrupted = []
-
-        def check(sim):
-            self._tune(sim, k, state)
-            state["peak"] = max(state.get("peak", 0.0), sim.walls.normal_force(k))
-            if self._at_rest(sim, k):
-                self._finish_level(sim, state, k, True)
-            if between is not None and between(sim):
-                interrupted.append(True)
-                return True
-            return "level_end" not in state or state["level_end"] != end
-
-        while state["level"] < len(self.levels):
-            end = state["level_end"]
-            level = state["level"]
-            try:
-                sim.run(steps=end - sim.step, every=every, between=check, max_chunk=chunk)
-            except OverlapError as err:
-                self._stop_early(state, err)
-                break
-            if interrupted:
-                return "stopped"
-            if state["level"] == level:
-                self._finish_level(sim, state, k, False)
-        sim.set_motion(k, Motion("fixed"))
-        return "done"
-
-    def _stop_early(self, state, err):
-        """The load outgrew the contact law (an overlap above overlap_limit): end the
-        ladder at the current level, keep the levels done and say so."""
-        target, branch = self.levels[state["level"]]
-        state["stopped_early"] = {"level": state["level"], "branch": branch,
-                                  "target_Pa": target, "reason": str(err)}
-        state["level"] = len(self.levels)
-        state.pop("level_end", None)
-        self.log(f"ladder stopped at level {state['stopped_early']['level']} ({branch}, "
-                 f"p = {target:.4g} Pa): {err}; the results keep the "
-                 f"{len(state['rows'])} levels done")
-
-    def _arm(self, sim, state, k):
-        """Start the current level: the servo's target force, its gain no higher than
-        v_max/(BAND F_target) (the whole bound at the first level, when the piston
-        becomes a servo moving down at up to v_max) and the level's deadline."""
-        p = self.config.protocol
-        target = self.levels[state["level"]][0] * self.cross_section
-        bound = p.max_speed / (BAND * target)
-        gain = min(sim.walls.motion_of(k).gain, bound) if state["level"] else bound
-        sim.set_servo(k, force=target, gain=gain, max_speed=p.max_speed,
-                      direction=(0.0, 0.0, -1.0))
-        state["level_end"] = sim.step + math.ceil(p.level_max_time / sim.dt - 1e-9)
-
-    def _tune(self, sim, k, state):
-        """Servo gain g = min(v_max/(BAND F_target), 1/(tau K)), K the sample's stiffness seen
-        by the piston: the secant dF/dz since the last call, capped by the stiffness of
-        the piston's contacts (the sample behind them is softer); no cap when the sample
-        yields (dF/dz <= 0).  The last (z, F) is kept in ``state`` (checkpointed)."""
-        p = self.config.protocol
-        servo = sim.walls.motion_of(k)
-        target = servo.force
-        z = float(sim.walls.offset[k, 2])
-        force = sim.walls.normal_force(k)
-        gain = p.max_speed / (BAND * target)
-        z_last, f_last = state.get("servo", (z, force))
-        if z_last != z:
-            stiffness = min((force - f_last) / (z_last - z), self._contact_stiffness(sim, k))
-            if stiffness > 0:
-                gain = min(gain, 1.0 / (p.servo_time * stiffness))
-        elif "servo" in state:
-            gain = servo.gain
-        state["servo"] = (z, force)
-        sim.set_servo(k, gain=gain)
-
-    @staticmethod
-    def _contact_stiffness(sim, k):
-        """Tangent stiffness [N/m] of the contacts on wall k: sum of 1.5 F_c/delta_c
-        (Hertz), the overlap delta_c = R - |branch| of each."""
-        contacts = sim.wall_contacts()
-        mine = contacts.wall == k
-        overlap = sim.state.radii[contacts.grain[mine]] \
-            - np.linalg.norm(contacts.branch[mine], axis=1)
-        ok = overlap > 0
-        return float(np.sum(1.5 * contacts.normal_force[mine][ok] / overlap[ok]))
-
-    def _at_rest(self, sim, k):
-        """Piston force on target, the sample in static equilibrium (bottom force plus
-        side-wall friction carry the piston force plus the weight, within the same
-        tolerance: an oscillation caught at its turning point has no kinetic energy but
-        does not balance) and the kinetic energy small against the elastic energy."""
-        p = self.config.protocol
-        walls = sim.walls
-        target = walls.motion_of(k).force
-        piston = walls.normal_force(k)
-        if abs(piston - target) > p.force_tolerance * target:
-            return False
-        bottom = walls.normal_force(walls.index(self.bottom_wall))
-        friction = self._side_friction(sim)
-        if abs(bottom + friction - piston - self._weight(sim)) > p.force_tolerance * target:
-            return False
-        e = energy_budget(sim)
-        return e["kinetic"] + e["rotational"] <= p.rest_ratio * e["elastic"]
-
-    def _side_friction(self, sim):
-        """Vertical force [N] the side walls carry by friction (upward on the grains)."""
-        walls = sim.walls
-        return -float(np.sum(walls.force[[walls.index(n) for n in self.side_walls], 2]))
-
-    @staticmethod
-    def _weight(sim):
-        """Weight [N] of the free grains."""
-        return float(np.sum(sim.state.masses[sim.state.fixed == 0])) * float(-sim.gravity[2])
-
-    def _finish_level(self, sim, state, k, at_rest):
-        target, branch = self.levels[state["level"]]
-        row = {"level": state["level"], "branch": branch, "target_Pa": target,
-               "at_rest": at_rest, **self.measure(sim),
-               "peak_over_target": state.pop("peak", 0.0) / (target * self.cross_section)}
-        self.log(f"level {row['level']} ({branch}) p = {target:.4g} Pa: sigma_top = "
-                 f"{row['sigma_top_Pa']:.4g} Pa, e = {row['void_ratio']:.5f}, "
-                 f"{'at rest' if at_rest else 'NOT at rest'} at t = {sim.time:.5g} s")
-        state["rows"].append(row)
-        state["level"] += 1
-        del state["level_end"]
-        if state["level"] < len(self.levels):
-            self._arm(sim, state, k)
-
-    def measure(self, sim):
-        """The oedometer's state: stresses [Pa], K0, void ratio, friction on the side
-        walls [N], coordination and kinetic energy [J] (see the module docstring)."""
-        walls, s = sim.walls, sim.state
-        piston, bottom = walls.index(PISTON), walls.index(self.bottom_wall)
-        z_top = float(walls.geometry[piston, 2] + walls.offset[piston, 2])
-        z_bottom = float(walls.geometry[bottom, 2] + walls.offset[bottom, 2])
-        height = z_top - z_bottom
-        solid = float(np.sum(4.0 / 3.0 * np.pi * s.radii**3))
-        sides = [walls.index(name) for name in self.side_walls]
-        contacts = sim.wall_contacts()
-        lateral = float(np.sum(contacts.normal_force[np.isin(contacts.wall, sides)])) \
-            / (self.perimeter * height)
-        top = walls.normal_force(piston) / self.cross_section
-        bot = walls.normal_force(bottom) / self.cross_section
-        vertical = 0.5 * (top + bot)
-        weight = self._weight(sim)
-        e = energy_budget(sim)
-        return {"sigma_top_Pa": top, "sigma_bottom_Pa": bot, "sigma_lateral_Pa": lateral,
-                "K0": lateral / vertical if vertical > 0 else float("nan"),
-                "trace_Pa": top + 2.0 * lateral, "void_ratio": (self.cross_section * height
-                                                               - solid) / solid,
-                "height_m": height, "side_friction_N": self._side_friction(sim),
-                "weight_N": weight, "coordination": coordination_number(sim),
-                "kinetic_J": e["kinetic"] + e["rotational"], "elastic_J": e["elastic"],
-                "time_s": sim.time, "step": sim.step}
+    def walls(self, material_index):
+        """The piston: a plane at the top of the container, facing down, of
+        piston_material (None: the walls' material, material_index(None))."""
+        v = self.vessel
+        material = material_index(self.p.piston_material)
+        center = v.center if v.center is not None \
+            else tuple(0.5 * (np.asarray(v.lo[:2]) + v.hi[:2]))
+        return [Plane((*center, v.top), (0.0, 0.0, -1.0), material, name=PISTON,
+                      area=v.cross_section)]
 
     # ------------------------------------------------------------------ results
     def results(self, sim, states):
@@ -325,11 +191,199 @@ class Oedometer(Deposition):
                 ax.set_xscale("log")
         axes[0].legend(fontsize=7)
         t = series["time [s]"]
-        axes[2].plot(t, series[f"force_{PISTON} [N]"] / self.cross_section / 1e6)
+        axes[2].plot(t, series[f"force_{PISTON} [N]"] / self.vessel.cross_section / 1e6)
         axes[2].set(xlabel="t [s]", ylabel="piston stress [MPa]")
-        fig.suptitle(f"{self.config.run.name}: oedometric test, {self.config.grains.count} "
-                     "grains")
+        fig.suptitle(f"{self.title}: oedometric test, "
+                     f"{results['deposition'].get('grains', '?')} grains")
         return [save_figure(fig, rundir, "oedometer.png")]
+
+
+class Load(Phase):
+    """The load phase: the piston put just above the highest grain, then driven as a
+    stress-controlled wall up and down the protocol's ladder (module docstring)."""
+
+    name = "load"
+
+    def __init__(self, protocol):
+        self.protocol = protocol
+        self.p = protocol.p
+        self.vessel = protocol.vessel
+        self.levels = ladder(self.p.p0, self.p.p_max, self.p.factor, self.p.unload)
+
+    def duration(self):
+        return self.p.level_max_time * len(self.levels)
+
+    def log(self, message):
+        self.protocol.log(message)
+
+    def run(self, sim, state, *, every=(), between=None):
+        p = self.p
+        k = sim.walls.index(PISTON)
+        if "level" not in state:
+            top = float(np.max(sim.state.positions[:, 2] + sim.state.radii))
+            offset = sim.walls.offset[k].copy()
+            offset[2] = top + 1e-3 * float(sim.state.radii.min()) - sim.walls.geometry[k, 2]
+            sim.place_wall(k, offset)
+            state.update(level=0, rows=[])
+            self._arm(sim, state, k)
+        interrupted = []
+
+        def check(sim):
+            """At every pause (at least every servo_time/4): tune the gain, keep the
+            peak, end a level at rest; stop for the runner or at the level's end."""
+            self._tune(sim, k, state)
+            state["peak"] = max(state.get("peak", 0.0), sim.walls.normal_force(k))
+            if self._at_rest(sim, k):
+                self._finish_level(sim, state, k, True)
+            if between is not None and between(sim):
+                interrupted.append(True)
+                return True
+            return "level_end" not in state or state["level_end"] != end
+
+        pauses = [*every, (Periodic(time=p.servo_time / 4), lambda sim: None)]
+        while state["level"] < len(self.levels):
+            end = state["level_end"]
+            level = state["level"]
+            try:
+                sim.run(time=max(0.0, end - sim.time), every=pauses, between=check)
+            except OverlapError as err:
+                self._stop_early(state, err)
+                break
+            if interrupted:
+                return "stopped"
+            if state["level"] == level:
+                self._finish_level(sim, state, k, False)
+        sim.set_motion(k, Motion("fixed"))
+        return "done"
+
+    def _stop_early(self, state, err):
+        """The load outgrew the contact law (an overlap above overlap_limit): end the
+        ladder at the current level, keep the levels done and say so."""
+        target, branch = self.levels[state["level"]]
+        state["stopped_early"] = {"level": state["level"], "branch": branch,
+                                  "target_Pa": target, "reason": str(err)}
+        state["level"] = len(self.levels)
+        state.pop("level_end", None)
+        self.log(f"ladder stopped at level {state['stopped_early']['level']} ({branch}, "
+                 f"p = {target:.4g} Pa): {err}; the results keep the "
+                 f"{len(state['rows'])} levels done")
+
+    def _arm(self, sim, state, k):
+        """Start the current level: the servo's target force, its gain no higher than
+        v_max/(BAND F_target) (the whole bound at the first level, when the piston
+        becomes a servo moving down at up to v_max) and the level's deadline."""
+        p = self.p
+        target = self.levels[state["level"]][0] * self.vessel.cross_section
+        bound = p.max_speed / (BAND * target)
+        gain = min(sim.walls.motion_of(k).gain, bound) if state["level"] else bound
+        sim.set_servo(k, force=target, gain=gain, max_speed=p.max_speed,
+                      direction=(0.0, 0.0, -1.0))
+        state["level_end"] = sim.time + p.level_max_time
+
+    def _tune(self, sim, k, state):
+        """Servo gain g = min(v_max/(BAND F_target), 1/(tau K)), K the sample's stiffness seen
+        by the piston: the secant dF/dz since the last call, capped by the stiffness of
+        the piston's contacts (the sample behind them is softer); no cap when the sample
+        yields (dF/dz <= 0).  The last (z, F) is kept in ``state`` (checkpointed)."""
+        p = self.p
+        servo = sim.walls.motion_of(k)
+        target = servo.force
+        z = float(sim.walls.offset[k, 2])
+        force = sim.walls.normal_force(k)
+        gain = p.max_speed / (BAND * target)
+        z_last, f_last = state.get("servo", (z, force))
+        if z_last != z:
+            stiffness = min((force - f_last) / (z_last - z), self._contact_stiffness(sim, k))
+            if stiffness > 0:
+                gain = min(gain, 1.0 / (p.servo_time * stiffness))
+        elif "servo" in state:
+            gain = servo.gain
+        state["servo"] = (z, force)
+        sim.set_servo(k, gain=gain)
+
+    @staticmethod
+    def _contact_stiffness(sim, k):
+        """An upper bound of the tangent stiffness [N/m] of the contacts on wall k: sum
+        of 1.5 F_c/delta_c, the overlap delta_c = R - |branch| of each.  A contact law
+        F ~ delta^a has the tangent stiffness a F/delta: exact for Hertz (a = 3/2), an
+        upper bound for the linear spring (a = 1), which only lowers the gain; rigid
+        grains (no overlap) add nothing."""
+        contacts = sim.wall_contacts()
+        mine = contacts.wall == k
+        overlap = sim.state.radii[contacts.grain[mine]] \
+            - np.linalg.norm(contacts.branch[mine], axis=1)
+        ok = overlap > 0
+        return float(np.sum(1.5 * contacts.normal_force[mine][ok] / overlap[ok]))
+
+    def _at_rest(self, sim, k):
+        """Piston force on target, the sample in static equilibrium (bottom force plus
+        side-wall friction carry the piston force plus the weight, within the same
+        tolerance: an oscillation caught at its turning point has no kinetic energy but
+        does not balance) and the kinetic energy small against the elastic energy."""
+        p = self.p
+        walls = sim.walls
+        target = walls.motion_of(k).force
+        piston = walls.normal_force(k)
+        if abs(piston - target) > p.force_tolerance * target:
+            return False
+        bottom = walls.normal_force(walls.index(self.vessel.bottom_wall))
+        friction = self._side_friction(sim)
+        if abs(bottom + friction - piston - self._weight(sim)) > p.force_tolerance * target:
+            return False
+        e = energy_budget(sim)
+        return e["kinetic"] + e["rotational"] <= p.rest_ratio * e["elastic"]
+
+    def _side_friction(self, sim):
+        """Vertical force [N] the side walls carry by friction (upward on the grains)."""
+        walls = sim.walls
+        return -float(np.sum(walls.force[[walls.index(n) for n in self.vessel.side_walls], 2]))
+
+    @staticmethod
+    def _weight(sim):
+        """Weight [N] of the free grains."""
+        return float(np.sum(sim.state.masses[sim.state.fixed == 0])) * float(-sim.gravity[2])
+
+    def _finish_level(self, sim, state, k, at_rest):
+        target, branch = self.levels[state["level"]]
+        row = {"level": state["level"], "branch": branch, "target_Pa": target,
+               "at_rest": at_rest, **self.measure(sim),
+               "peak_over_target": state.pop("peak", 0.0) / (target * self.vessel.cross_section)}
+        self.log(f"level {row['level']} ({branch}) p = {target:.4g} Pa: sigma_top = "
+                 f"{row['sigma_top_Pa']:.4g} Pa, e = {row['void_ratio']:.5f}, "
+                 f"{'at rest' if at_rest else 'NOT at rest'} at t = {sim.time:.5g} s")
+        state["rows"].append(row)
+        state["level"] += 1
+        del state["level_end"]
+        if state["level"] < len(self.levels):
+            self._arm(sim, state, k)
+
+    def measure(self, sim):
+        """The oedometer's state: stresses [Pa], K0, void ratio, friction on the side
+        walls [N], coordination and kinetic energy [J] (see the module docstring)."""
+        walls, s = sim.walls, sim.state
+        piston, bottom = walls.index(PISTON), walls.index(self.vessel.bottom_wall)
+        z_top = float(walls.geometry[piston, 2] + walls.offset[piston, 2])
+        z_bottom = float(walls.geometry[bottom, 2] + walls.offset[bottom, 2])
+        height = z_top - z_bottom
+        solid = float(np.sum(4.0 / 3.0 * np.pi * s.radii**3))
+        sides = [walls.index(name) for name in self.vessel.side_walls]
+        contacts = sim.wall_contacts()
+        lateral = float(np.sum(contacts.normal_force[np.isin(contacts.wall, sides)])) \
+            / (self.vessel.perimeter * height)
+        top = walls.normal_force(piston) / self.vessel.cross_section
+        bot = walls.normal_force(bottom) / self.vessel.cross_section
+        vertical = 0.5 * (top + bot)
+        weight = self._weight(sim)
+        e = energy_budget(sim)
+        return {"sigma_top_Pa": top, "sigma_bottom_Pa": bot, "sigma_lateral_Pa": lateral,
+                "K0": lateral / vertical if vertical > 0 else float("nan"),
+                "trace_Pa": top + 2.0 * lateral, "void_ratio": (self.vessel.cross_section * height
+                                                               - solid) / solid,
+                "height_m": height, "side_friction_N": self._side_friction(sim),
+                "weight_N": weight, "coordination": coordination_number(sim),
+                "kinetic_J": e["kinetic"] + e["rotational"], "elastic_J": e["elastic"],
+                "time_s": sim.time}
+
 
 
 def fit_ladder(rows):

@@ -10,6 +10,7 @@ import numpy as np
 from .._jit import kernel
 from ..analysis.energy import energy_budget
 from ..analysis.packing import coordination_number, packing_fraction, void_ratio
+from ..core.state import cell_order
 from ..core.triggers import EnergyRatioBelow, MaxSpeedBelow
 
 
@@ -185,7 +186,7 @@ def settle_report(sim, reached, criterion, bottom_wall=None, cross_section=None)
     """The report of ``settle`` for a sample whose settling run has ended."""
     s = sim.state
     up = 2 if s.dim == 3 else 1
-    report = {"reached": bool(reached), "criterion": repr(criterion),
+    report = {"reached": bool(reached), "criterion": repr(criterion), "grains": s.n,
               "time_s": sim.time, "steps": sim.step,
               "coordination_number": coordination_number(sim),
               "coordination_number_mechanical": coordination_number(sim, exclude_rattlers=True),
@@ -211,3 +212,28 @@ def settle_report(sim, reached, criterion, bottom_wall=None, cross_section=None)
             report["packing_fraction_core"] = core
             report["void_ratio_core"] = void_ratio(core)
     return report
+
+
+def fill(vessel, radii, rng, insertion="random", packing_fraction=0.2, lattice_gap=0.05,
+         lattice_speed=0.0):
+    """Grains of ``radii`` [m] put into ``vessel`` (protocols.base.Vessel) from its
+    floor: "random" non-overlapping positions in a region of solid fraction
+    ``packing_fraction``, in cell order (touching grains at nearby indices), or a loose
+    "lattice" of gap ``lattice_gap`` (fraction of d_max) with random velocities of
+    ``lattice_speed`` [m/s].  Returns (positions (N, 3), radii (N,), velocities (N, 3)
+    or None)."""
+    dim = vessel.dim
+    if insertion == "random":
+        solid = float(np.sum(4 / 3 * np.pi * radii**3 if dim == 3 else np.pi * radii**2))
+        region = vessel.region(solid / (packing_fraction * vessel.cross_section))
+        positions, radii = random_insertion(radii, region, rng, dim)
+        # inserted largest first, at random places: put them cell by cell (cells of
+        # about the neighbour cutoff), so that touching grains sit at nearby indices
+        order = cell_order(positions, 2.2 * radii.max())
+        return positions[order], radii[order], None
+    spacing = 2 * radii.max() * (1 + lattice_gap)
+    per_layer = max(1.0, (vessel.cross_section / spacing ** (dim - 1)) * 0.7)
+    height = (math.ceil(radii.size / per_layer) + 2) * spacing
+    positions, velocities = lattice_insertion(radii, vessel.region(height), rng, dim,
+                                              lattice_gap, lattice_speed)
+    return positions, radii, velocities

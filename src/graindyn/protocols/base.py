@@ -1,0 +1,184 @@
+"""What a protocol is made of: a container (``Vessel``), phases that each run an engine
+from where it stands (``Phase``) and the sequence of them (``Protocol``); and
+``PROTOCOLS``, the one registry of protocols, read by config validation (the
+``[protocol]`` section is the settings class of its ``kind``), the runner, sweeps and
+``graindyn info``.
+
+A protocol never sees the Config: it is made from its own settings (a Section) and
+the Vessel, and its phases receive the engine (core.engine.Engine) and use only its
+interface.  Each phase keeps its progress in a JSON-able dict that checkpoints carry,
+deadlines as simulated time, so a resumed run picks up inside the phase where it
+stopped and ends it where the uninterrupted run would have.
+"""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..schema import Section
+from .prepare import BoxRegion, CylinderRegion
+
+
+@dataclass(frozen=True)
+class Vessel:
+    """The container the grains fill, as protocols need it.
+
+    dim : 2 or 3.  shape : "box" or "cylinder".
+    lo, hi : (dim,) [m] the box's corners; for a cylinder the bounding box of its
+      inside, from the bottom (z = 0) to its height.
+    center, radius : the cylinder's axis (x, y) [m] and radius [m] (None for a box).
+    open_top : no wall at the top (a box built with open_top; a cylinder always).
+    bottom_wall, side_walls : the names of its walls.
+    cross_section [m^2] (2D: width [m]) and perimeter [m] (2D: 2, the two sides).
+    """
+
+    dim: int
+    shape: str
+    lo: tuple
+    hi: tuple
+    open_top: bool
+    bottom_wall: str
+    side_walls: tuple
+    cross_section: float
+    perimeter: float
+    center: tuple | None = None
+    radius: float | None = None
+
+    @classmethod
+    def box(cls, lo, hi, open_top, dim):
+        lo, hi = tuple(float(x) for x in lo), tuple(float(x) for x in hi)
+        span = np.subtract(hi, lo)
+        sides = ("xlo", "xhi", "ylo", "yhi")[:2 * (dim - 1)]
+        return cls(dim, "box", lo, hi, open_top, "zlo" if dim == 3 else "ylo", sides,
+                   float(np.prod(span[:-1])),
+                   2.0 * float(np.sum(span[:2])) if dim == 3 else 2.0)
+
+    @classmethod
+    def cylinder(cls, center, radius, height):
+        cx, cy = (float(x) for x in center)
+        return cls(3, "cylinder", (cx - radius, cy - radius, 0.0),
+                   (cx + radius, cy + radius, float(height)), True, "bottom", ("side",),
+                   math.pi * radius**2, 2.0 * math.pi * radius, (cx, cy), float(radius))
+
+    @property
+    def floor(self):
+        """Height [m] of the bottom (z in 3D, y in 2D)."""
+        return self.lo[-1]
+
+    @property
+    def top(self):
+        """Height [m] of the top of the container (its ceiling when closed)."""
+        return self.hi[-1]
+
+    def region(self, height):
+        """The insertion region from the floor up to ``height`` [m] above it; ValueError
+        when a closed box is lower than that."""
+        top = self.floor + height
+        if not self.open_top and top > self.top:
+            raise ValueError(f"the grains need an insertion region {height:.4g} m high but "
+                             f"the closed box is only {self.top - self.floor:.4g} m high: "
+                             "open its top, make it taller or lower the count")
+        if self.shape == "box":
+            return BoxRegion(self.lo[:-1] + (self.floor,), self.hi[:-1] + (top,))
+        return CylinderRegion(self.center, self.radius, self.floor, top)
+
+
+class Phase:
+    """One stage of a protocol.  ``name`` keys its progress in the run's state;
+    ``duration`` is its longest simulated time [s] (for the progress bar)."""
+
+    name = "phase"
+
+    def duration(self):
+        """Longest simulated time [s] of the phase."""
+        return math.inf
+
+    def run(self, engine, state, *, every=(), between=None):
+        """Run the phase on ``engine`` from where it stands; ``state`` (dict, JSON-able)
+        records how far it got.  every and between as Engine.run.  Returns "done", or
+        "stopped" when ``between`` stopped it (call again with the same state)."""
+        raise NotImplementedError
+
+    def report(self, engine, state):
+        """What the phase has to say of the engine when it ends (dict), kept in its
+        state as state["report"]."""
+        return {}
+
+
+def run_until(engine, state, key, duration, **run):
+    """Run ``engine`` until the deadline ``state[key]`` [s] of simulated time, set to
+    now + ``duration`` the first time (so a resumed phase keeps its deadline)."""
+    end = state.setdefault(key, engine.time + duration)
+    return engine.run(time=max(0.0, end - engine.time), **run)
+
+
+class Protocol:
+    """A sequence of phases run on one engine.
+
+    Subclasses set ``kind`` (the config's protocol.kind), ``settings`` (the Section class
+    of the ``[protocol]`` section: its ``kind`` field a Literal of ``kind``), ``summary``
+    (a line for graindyn info) and build ``phases`` in __init__.  They may add walls
+    (``walls``), turn the phases' reports into results, tables and figures, and offer
+    ``summarize_sweep(sweep_dir, points)`` for sweeps of their runs.
+    """
+
+    kind = "protocol"
+    settings = Section
+    summary = ""
+    summarize_sweep = None
+    title = "run"      # the run's name, in figure titles (the runner sets it)
+
+    def __init__(self, settings, vessel: Vessel):
+        self.p = settings
+        self.vessel = vessel
+        self.phases = ()
+
+    @staticmethod
+    def log(message):
+        """Where the protocol reports its progress (the runner sets the run log)."""
+
+    @classmethod
+    def cross_check(cls, config):
+        """ValueError when the protocol cannot run the rest of ``config`` (dimension,
+        container); called by config validation, which has checked that the config has
+        a container."""
+
+    @classmethod
+    def materials_named(cls, settings):
+        """(where, material name) pairs of the materials ``settings`` name (config
+        validation checks that each exists)."""
+        return []
+
+    def walls(self, material_index):
+        """Walls (core.walls) the protocol adds to the container's; material_index(name)
+        gives a material's id."""
+        return []
+
+    def results(self, engine, states):
+        """The run's results from the phases' states (dict of name -> state)."""
+        return {name: state.get("report", {}) for name, state in states.items()}
+
+    def tables(self, rundir, results):
+        """Tables written beside results.json; their paths."""
+        return []
+
+    def figures(self, rundir, series, results):
+        """Figures of the run from its series (output.rundir.Series.read()); their paths."""
+        return []
+
+
+PROTOCOLS: dict[str, type[Protocol]] = {}
+
+
+def register(protocol):
+    """Add a Protocol class to PROTOCOLS under its kind (new kinds only); returns it, so
+    it serves as a class decorator."""
+    if protocol.kind in PROTOCOLS and PROTOCOLS[protocol.kind] is not protocol:
+        raise ValueError(f"protocol kind {protocol.kind!r} is registered already")
+    PROTOCOLS[protocol.kind] = protocol
+    return protocol
+
+
+def settings_classes():
+    """kind -> settings Section class, for config validation."""
+    return {kind: protocol.settings for kind, protocol in PROTOCOLS.items()}
