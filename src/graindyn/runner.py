@@ -98,6 +98,8 @@ class _Driver:
     def resume(self, meta, t):
         """Hand each writer its state from the checkpoint ``meta`` at time ``t`` [s]."""
         states = meta.get("writers", {})
+        if "writers" not in meta and "vtk" in meta:      # a checkpoint of an older version
+            states = {"vtk": {"entries": meta["vtk"]}}
         for w in self.writers:
             w.resume(states.get(w.name, {}), t)
 

@@ -146,7 +146,7 @@ def test_interrupted_sweep_resumes_without_recomputing(interrupted):
     assert "1 finished earlier, 2 to run" in interrupted["second"]
     assert "finished reference" not in interrupted["second"]
     long = out / "max_time=1" / "seed-1"
-    assert "resume from step" in (long / "run.log").read_text()
+    assert "resume from t = " in (long / "run.log").read_text()
     assert "finished max_time=1/seed-1 (resumed" in interrupted["second"]
     results = json.loads((long / "results.json").read_text())
     assert results["time_s"] == pytest.approx(1.0, rel=1e-3)

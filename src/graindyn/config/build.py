@@ -56,12 +56,15 @@ def walls(config: Config):
     return out, [Periodic(a, lo, hi) for a, lo, hi in w.periodic]
 
 
-def setup(config: Config, extra_walls=()):
-    """The engines.Setup of ``config``, with ``extra_walls`` (a protocol's) after the
-    container's and the config's own."""
+def setup(config: Config, made_protocol=None):
+    """The engines.Setup of ``config``: its walls as ``made_protocol`` makes them of the
+    container's and the config's own (Protocol.walls)."""
     planes, periodic = walls(config)
-    return Setup(materials(config), contact_model(config), planes + list(extra_walls),
-                 periodic, config.run.gravity, config.run.backend)
+    if made_protocol is not None:
+        index = lambda name: config.material_index(name or config.walls.material)  # noqa: E731
+        planes = made_protocol.walls(planes, index)
+    return Setup(materials(config), contact_model(config), planes, periodic,
+                 config.run.gravity, config.run.backend)
 
 
 def vessel(config: Config):
@@ -82,9 +85,8 @@ def protocol(config: Config):
 def engine(config: Config, state, made_protocol):
     """The engine of ``config`` (engine.kind) around ``state``, with the walls of the
     container, of the config and of ``made_protocol``."""
-    entry = ENGINES[config.engine.kind]
-    index = lambda name: config.material_index(name or config.walls.material)  # noqa: E731
-    return entry.build(state, setup(config, made_protocol.walls(index)), config.engine)
+    return ENGINES[config.engine.kind].build(state, setup(config, made_protocol),
+                                             config.engine)
 
 
 def sample(config: Config, made_protocol, rng):

@@ -149,10 +149,13 @@ class Protocol:
         validation checks that each exists)."""
         return []
 
-    def walls(self, material_index):
-        """Walls (core.walls) the protocol adds to the container's; material_index(name)
-        gives a material's id."""
-        return []
+    def walls(self, container, material_index):
+        """The walls (core.walls) of the run from ``container``, the walls of the
+        config's container and its extra walls: as they are (the default), with walls
+        of the protocol's own added (the oedometer's piston) or some replaced (the
+        silo's floor with its hole).  material_index(name) gives a material's id (None:
+        the walls' material)."""
+        return list(container)
 
     def results(self, engine, states):
         """The run's results from the phases' states (dict of name -> state)."""

@@ -129,15 +129,15 @@ class Oedometer(Protocol):
         return [("protocol.piston_material", settings.piston_material)] \
             if settings.piston_material is not None else []
 
-    def walls(self, material_index):
-        """The piston: a plane at the top of the container, facing down, of
+    def walls(self, container, material_index):
+        """The container and the piston: a plane at its top, facing down, of
         piston_material (None: the walls' material, material_index(None))."""
         v = self.vessel
         material = material_index(self.p.piston_material)
         center = v.center if v.center is not None \
             else tuple(0.5 * (np.asarray(v.lo[:2]) + v.hi[:2]))
-        return [Plane((*center, v.top), (0.0, 0.0, -1.0), material, name=PISTON,
-                      area=v.cross_section)]
+        return list(container) + [Plane((*center, v.top), (0.0, 0.0, -1.0), material,
+                                        name=PISTON, area=v.cross_section)]
 
     # ------------------------------------------------------------------ results
     def results(self, sim, states):

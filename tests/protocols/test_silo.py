@@ -1,0 +1,177 @@
+"""The 2D silo (protocols/silo.py, Pérez Sec. 4): a small silo flows, jams, is tapped
+and flows again with every disk accounted for; the jam detector and the avalanche
+bookkeeping on scripted sequences; Eq. 39; bad input refused before anything runs."""
+import copy
+import json
+import pathlib
+import tomllib
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from graindyn.config import ConfigError, build, validate
+from graindyn.protocols.silo import Discharge, cumulative
+from graindyn.output import checkpoint
+from graindyn.runner import execute
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+EXAMPLE = tomllib.loads((ROOT / "examples" / "silo.toml").read_text())
+
+
+def small(count=200, width=0.05, hole=0.015, **protocol):
+    """The example silo, shrunk: ``count`` disks in a silo ``width`` [m] wide."""
+    data = copy.deepcopy(EXAMPLE)
+    data["grains"]["count"] = count
+    data["walls"]["container"]["hi"] = [width, 0.6]
+    data["protocol"].update(hole=hole, **protocol)
+    data["output"] = {"series_every": 0.02, "figures": False}
+    return data
+
+
+def test_the_example_is_the_papers_silo():
+    """examples/silo.toml holds Pérez's values in SI (N, d_ave, Delta_d, D, sigma, kappa,
+    epsilon^2, mu, g, A, nu, c) and a time step of 0.01 t_coll."""
+    c = validate(EXAMPLE)
+    m = c.materials[0]
+    assert c.grains.count == 2000 and c.run.dim == 2
+    assert (c.grains.diameter.min, c.grains.diameter.max) == (0.0045, 0.0055)
+    assert c.walls.container.hi[0] - c.walls.container.lo[0] == 0.15
+    assert (m.density, m.kn, m.friction_sliding, m.friction_static) == (8.0, 4e3, 0.5, 0.5)
+    assert m.restitution ** 2 == pytest.approx(0.9, rel=1e-6)
+    assert c.run.gravity == (0.0, -9.81, 0.0)
+    p = c.protocol
+    assert (p.tap_amplitude, p.tap_frequency, p.jam_factor) == (0.006, 8.0, 8.0)
+    mass = 8.0 * np.pi * 0.0025**2
+    t_coll = np.pi * np.sqrt(0.5 * mass / 4e3)
+    assert c.engine.dt == pytest.approx(0.01 * t_coll, rel=0.01)
+
+
+def test_a_small_silo_flows_jams_is_tapped_and_flows_again(tmp_path):
+    """150 disks, R = 3: the initial discharge jams, taps break the arches, the disks
+    that left are re-injected above the packing without overlapping, and at the end
+    every disk is in the silo (or in flight just below its floor) with as many
+    re-injections as avalanche sizes add up to; the taps leave the silo where it was."""
+    config = validate(small(count=150, width=0.04, avalanches=2, discharge_time=3.0,
+                            jam_factor=4.0, threshold=0.01))
+    results = execute(config, tmp_path / "run", show_progress=False, echo=lambda *a: None)
+    rows = results["avalanches"]
+    assert rows[0]["first"] and not any(r["first"] for r in rows[1:])
+    assert len(rows) == 3, rows                       # the first and two more
+    assert results["exited"] == sum(r["size"] for r in rows) > 0
+    assert all(r["end_s"] > r["start_s"] for r in rows)
+    assert rows[1]["start_s"] == rows[0]["end_s"]     # an avalanche runs from tap to jam
+    assert results["R"] == pytest.approx(0.015 / results["d_ave_m"])
+    csv = (tmp_path / "run" / "avalanches.csv").read_text().splitlines()
+    assert len(csv) == 1 + len(rows)
+    arrays, meta, _, t = checkpoint.latest(tmp_path / "run" / "checkpoints")
+    x, y = arrays["grains/positions"][:, 0], arrays["grains/positions"][:, 1]
+    r = arrays["grains/radii"]
+    d = results["d_ave_m"]
+    assert np.all((x > 0) & (x < 0.04)), "a disk left through a side wall"
+    assert np.all(y > -config.protocol.exit_depth * d - 1e-12), "a disk was not re-injected"
+    assert y.size == config.grains.count
+    # no two disks deeper in each other than the engine's overlap limit
+    gap = np.hypot(x[:, None] - x, y[:, None] - y) - (r[:, None] + r)
+    np.fill_diagonal(gap, np.inf)
+    assert gap.min() > -config.engine.overlap_limit * r.min()
+    names = [w.name for w in build.setup(config, build.protocol(config)).walls]
+    silo = [k for k, n in enumerate(names) if n in ("floor_left", "floor_right", "xlo", "xhi")]
+    assert np.all(np.abs(arrays["walls/offset"][silo]) < 1e-9), arrays["walls/offset"][silo]
+
+
+class _Engine(SimpleNamespace):
+    """What Discharge's jam check and bookkeeping read of an engine: time, the grains'
+    velocities and masses, walls by name, set_motion."""
+
+    def __init__(self):
+        walls = SimpleNamespace(index=lambda name: name)
+        super().__init__(time=0.0, walls=walls, motions=[],
+                         state=SimpleNamespace(velocities=np.zeros((3, 3)),
+                                               masses=np.full(3, 2.0)))
+
+    def set_motion(self, wall, motion):
+        self.motions.append((wall, motion.kind))
+
+
+def test_jam_detector_and_avalanche_bookkeeping_on_a_scripted_sequence():
+    """Jammed only when the largest speed is below v0/c AND no disk left for c t0; an
+    avalanche runs from one tap to the next jam, a jam with no exit since the tap is a
+    null avalanche; a tap moves every silo wall and ends fixing them; the bookkeeping
+    lives in a JSON-able dict, so a copy taken mid-avalanche (a checkpoint) goes on to
+    the same record."""
+    protocol = SimpleNamespace(p=validate(small()).protocol, vessel=None,
+                               log=lambda message: None)
+    phase = Discharge(protocol)
+    engine = _Engine()
+    engine.walls.offset = {name: np.zeros(3) for name in
+                           ("xlo", "xhi", "floor_left", "floor_right", "gate")}
+    engine.place_wall = lambda wall, where: engine.walls.offset.__setitem__(wall, np.asarray(where))
+    t0, v0, c = 0.02, 0.2, 8.0
+    state = {"avalanches": [], "current": {"start_s": 0.0, "size": 0, "first": True},
+             "last_exit_s": 0.0, "exited": 0, "tap_end_s": None, "jammed": False}
+    engine.state.velocities[1, 1] = 0.5 * v0 / c
+    engine.time = c * t0 * 0.99
+    assert not phase.is_jammed(engine, state, t0, v0)         # a disk left too recently
+    engine.time = c * t0 * 1.01
+    assert phase.is_jammed(engine, state, t0, v0)
+    engine.state.velocities[1, 1] = 1.01 * v0 / c
+    assert not phase.is_jammed(engine, state, t0, v0)         # still moving
+    # the first avalanche: 5 disks left, the last at t = 0.3
+    state["current"]["size"], state["last_exit_s"] = 5, 0.3
+    engine.time = 0.5
+    phase.close_avalanche(engine, state)
+    phase.tap(engine, state)
+    assert sorted(w for w, kind in engine.motions if kind == "sinusoid") == sorted(
+        ["xlo", "xhi", "floor_left", "floor_right", "gate"])
+    assert state["tap_end_s"] == pytest.approx(0.5 + 0.5 / 8.0)
+    engine.time = state["tap_end_s"]
+    phase.end_tap(engine, state)
+    assert [kind for _, kind in engine.motions[-5:]] == ["fixed"] * 5
+    checkpointed = json.loads(json.dumps(state))              # mid-avalanche
+    for record in (state, checkpointed):
+        engine.time = 1.0
+        phase.close_avalanche(engine, record)                  # nothing left: null
+        phase.tap(engine, record)
+        record["current"]["size"], record["last_exit_s"] = 3, 1.2
+        engine.time = 1.5
+        phase.close_avalanche(engine, record)
+    assert checkpointed == json.loads(json.dumps(state))
+    sizes = [(r["first"], r["size"]) for r in state["avalanches"]]
+    assert sizes == [(True, 5), (False, 0), (False, 3)]
+    first, null, last = state["avalanches"]
+    assert first["duration_s"] == pytest.approx(0.3) and null["duration_s"] == 0.0
+    assert first["mass_flow_kg_per_s"] == pytest.approx(5 / 0.3 * 2.0)
+    assert last["start_s"] == 1.0 and last["duration_s"] == pytest.approx(0.2)
+
+
+def test_cumulative_is_eq_39():
+    """w(s) = number of avalanches of size >= s over the number of non-null ones; sizes
+    1 + floor(X), X exponential of scale 30, have P(size >= s) = exp(-(s - 1)/30)
+    exactly (20 000 draws: w within 4 standard errors below s = 100)."""
+    s, w = cumulative([0, 1, 2, 2, 5, 0])
+    np.testing.assert_allclose(w, [1.0, 0.75, 0.25, 0.25, 0.25])
+    assert list(s) == [1, 2, 3, 4, 5]
+    rng = np.random.default_rng(4)
+    sizes = 1 + np.floor(rng.exponential(30.0, 20000))
+    s, w = cumulative(sizes)
+    keep = s < 100
+    truth = np.exp(-(s[keep] - 1) / 30.0)
+    error = np.sqrt(truth * (1 - truth) / sizes.size)
+    assert np.all(np.abs(w[keep] - truth) < 4 * error + 1e-12)
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"hole": 0.06}, "not narrower than the silo"),
+    ({"hole": 0.004}, "not wider than the smallest disk"),
+    ({"count": 5000}, "too narrow for 5000 disks"),
+    ({"tap_amplitude": 0.0}, "protocol.tap_amplitude"),
+    ({"tap_frequency": 0.0}, "protocol.tap_frequency"),
+])
+def test_bad_input_is_refused_with_one_clear_message(change, message):
+    """A hole wider than the silo, a hole smaller than the smallest disk, a silo too
+    narrow for its disks, a tap that cannot lift: refused at validation."""
+    count = change.pop("count", 200)
+    with pytest.raises(ConfigError, match=message) as err:
+        validate(small(count=count, **change))
+    assert str(err.value).count("\n") == 1, str(err.value)    # one problem, one line
