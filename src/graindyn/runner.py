@@ -24,7 +24,7 @@ from .core.triggers import Periodic
 from .output import checkpoint
 from .output.progress import progress_bar
 from .output.rundir import RunDirectory, Series
-from .output.writers import SeriesWriter, VtkWriter
+from .output.writers import NetworkWriter, SeriesWriter, VtkWriter
 
 
 class RunInterrupted(RuntimeError):
@@ -79,13 +79,17 @@ class _Driver:
     def __init__(self, rundir, protocol, engine, rng, progress_state, output, show):
         self.rundir, self.protocol, self.engine, self.rng = rundir, protocol, engine, rng
         protocol.log = rundir.log
+        protocol.folder = rundir.path
         self.state = progress_state
         self.writers = [SeriesWriter(rundir.path / "series.csv",
-                                     Periodic(time=output.series_every))]
-        if output.vtk_every is not None:
-            self.writers.append(VtkWriter(rundir.vtk, Periodic(time=output.vtk_every),
-                                          output.vtk_contacts))
-        self.every = [(w.trigger, w.write) for w in self.writers]
+                                     Periodic(time=output.series_every)),
+                        VtkWriter(rundir.vtk, None if output.vtk_every is None
+                                  else Periodic(time=output.vtk_every), output.vtk_contacts)]
+        if output.figures:
+            self.writers.append(NetworkWriter(rundir.figures, None if output.pictures_every
+                                              is None else Periodic(time=output.pictures_every),
+                                              protocol.title))
+        self.every = [(w.trigger, w.write) for w in self.writers if w.trigger is not None]
         self.figures = output.figures
         self.every_steps = output.checkpoint_every_steps or math.inf
         self.every_seconds = output.checkpoint_every_seconds or math.inf

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from graindyn.config import ConfigError, build, validate
-from graindyn.protocols.silo import Discharge, cumulative
+from graindyn.analysis.avalanches import cumulative
+from graindyn.protocols.silo import Discharge
 from graindyn.output import checkpoint
 from graindyn.runner import execute
 
@@ -175,3 +176,52 @@ def test_bad_input_is_refused_with_one_clear_message(change, message):
     with pytest.raises(ConfigError, match=message) as err:
         validate(small(count=count, **change))
     assert str(err.value).count("\n") == 1, str(err.value)    # one problem, one line
+
+
+@pytest.mark.parametrize("model", ["exp_square", "power_law"])
+def test_the_fits_of_the_mean_avalanche_recover_known_parameters(model):
+    """<s>(R) drawn from each law with Pérez's parameters at R = 3.4..4.5, 5 % noise:
+    the fit recovers the parameters within 3 of its standard errors and chi2/dof is
+    about 1."""
+    from graindyn.analysis import avalanches
+
+    R = np.arange(3.4, 4.51, 0.1)
+    truth = avalanches.PAPER[model]
+    mean = (avalanches.exp_square(R, **truth) if model == "exp_square"
+            else avalanches.power_law(R, **truth))
+    err = 0.05 * mean
+    noisy = mean + err * np.random.default_rng(7).standard_normal(R.size)
+    fit = (avalanches.fit_exp_square if model == "exp_square"
+           else avalanches.fit_power_law)(R, noisy, err)
+    for name, value in truth.items():
+        if name != "s0":                       # s0 spans decades with the others
+            assert abs(fit[name] - value) < 3 * fit[f"{name}_err"], (name, fit)
+    assert 0.2 < fit["chi2_per_dof"] < 3.0, fit
+
+
+def test_the_sweep_summary_pools_seeds_per_hole_size(tmp_path):
+    """Two seeds at each of 4 hole sizes, avalanche sizes drawn from exponentials of
+    known mean: the summary pools the seeds per R (the first avalanche of each run left
+    out), writes the table, the JSON and the figure, and fits both laws."""
+    from graindyn.analysis import avalanches
+
+    rng = np.random.default_rng(3)
+    points = []
+    for R, scale in ((3.4, 20.0), (3.6, 35.0), (3.8, 60.0), (4.0, 110.0)):
+        for seed in (1, 2):
+            rows = [{"first": True, "size": 500}] + [
+                {"first": False, "size": int(s)} for s in rng.exponential(scale, 300)]
+            points.append(SimpleNamespace(status="finished", results={
+                "R": R, "avalanches": rows, "mean_flow_rate_per_s": 80.0}))
+    paths = avalanches.summarize_sweep(tmp_path, points)
+    assert all(p.exists() for p in paths)
+    data = json.loads((tmp_path / "silo_sweep.json").read_text())
+    rows = data["rows"]
+    assert [r["R"] for r in rows] == [3.4, 3.6, 3.8, 4.0]
+    assert [r["runs"] for r in rows] == [2, 2, 2, 2] and rows[0]["count"] == 600
+    for r, scale in zip(rows, (20.0, 35.0, 60.0, 110.0)):
+        # floor of an exponential of mean m has mean 1/(exp(1/m) - 1)
+        expected = 1.0 / (np.exp(1.0 / scale) - 1.0)
+        assert abs(r["mean"] - expected) < 4 * r["mean_err"]
+    assert "B" in data["fits"]["exp_square"] and "gamma" in data["fits"]["power_law"]
+    assert "| 3.400 | 2 | 600 |" in (tmp_path / "silo_sweep.md").read_text()

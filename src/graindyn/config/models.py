@@ -269,7 +269,11 @@ class OutputSection(Section):
                                             ge=1)
     checkpoint_every_seconds: Float | None = _f(
         600.0, "checkpoint interval [s] of wall-clock time; > 0", gt=0)
-    figures: bool = _f(True, "draw the figures (PNG)")
+    figures: bool = _f(True, "draw the figures (PNG), and pictures of the grains and "
+                       "their force network at the start and the end")
+    pictures_every: Float | None = _f(None, "interval [s] of simulated time between "
+                                      "pictures of the force network (None: the start and "
+                                      "the end only); > 0", gt=0)
 
 
 class Config(Section):

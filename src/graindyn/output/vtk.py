@@ -17,15 +17,26 @@ import numpy as np
 from ..core.walls import PLANE, SEGMENT
 
 
-def grains_mesh(state):
-    """The grains as a meshio point cloud."""
+def grains_mesh(state, marked=None):
+    """The grains as a meshio point cloud; ``marked`` (indices) adds the point field
+    "marked" (1 for those grains: a silo's blocking arch)."""
     n = state.n
-    return meshio.Mesh(
+    mesh = meshio.Mesh(
         state.positions.copy(), [("vertex", np.arange(n).reshape(-1, 1))],
         point_data={"radius": state.radii, "velocity": state.velocities,
                     "angular_velocity": state.angular_velocities, "force": state.forces,
                     "torque": state.torques, "material": state.materials.astype(np.int32),
                     "fixed": state.fixed.astype(np.int32)})
+    if marked is not None:
+        flag = np.zeros(n, np.int32)
+        flag[np.asarray(marked, dtype=np.int64)] = 1
+        mesh.point_data["marked"] = flag
+    return mesh
+
+
+def write_grains(path, state, marked=None):
+    """One VTK file of the grains (grains_mesh) at ``path``."""
+    meshio.write(path, grains_mesh(state, marked), binary=True)
 
 
 def _frame(normal):

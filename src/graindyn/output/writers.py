@@ -8,6 +8,7 @@ import numpy as np
 
 from ..analysis.energy import energy_budget
 from ..analysis.packing import coordination_number
+from .network import draw_network
 from .rundir import Series
 from .vtk import VtkSeries
 
@@ -29,8 +30,8 @@ def series_row(engine):
 
 
 class Writer:
-    """Writes ``write(engine)`` whenever ``trigger`` fires; ``name`` keys its resume
-    state in checkpoints."""
+    """Writes ``write(engine)`` whenever ``trigger`` fires (None: only at the start and
+    the end of a run); ``name`` keys its resume state in checkpoints."""
 
     name = "writer"
 
@@ -93,3 +94,32 @@ class VtkWriter(Writer):
     def resume(self, state, time):
         self.vtk.entries = [tuple(e) for e in state.get("entries", [])]
         self.vtk.truncate(time)
+
+
+class NetworkWriter(Writer):
+    """Pictures of the grains to scale and their force network (output.network):
+    ``folder``/network_000003.png, the fourth picture."""
+
+    name = "network"
+
+    def __init__(self, folder, trigger, title=""):
+        super().__init__(trigger)
+        self.folder = folder
+        self.title = title
+        self.times = []
+
+    def write(self, engine):
+        if self.times and self.times[-1] == engine.time:
+            return
+        draw_network(engine, self.folder / f"network_{len(self.times):06d}.png",
+                     title=f"{self.title}, t = {engine.time:.4g} s")
+        self.times.append(engine.time)
+
+    def resume_state(self):
+        return {"times": self.times}
+
+    def resume(self, state, time):
+        self.times = [t for t in state.get("times", []) if t <= time]
+        for path in self.folder.glob("network_*.png"):
+            if int(path.stem.rsplit("_", 1)[1]) >= len(self.times):
+                path.unlink()

@@ -127,6 +127,7 @@ class Protocol:
     summary = ""
     summarize_sweep = None
     title = "run"      # the run's name, in figure titles (the runner sets it)
+    folder = None      # the run directory, for files of the protocol's own (the runner sets it)
 
     def __init__(self, settings, vessel: Vessel):
         self.p = settings

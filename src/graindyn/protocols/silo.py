@@ -36,8 +36,12 @@ from typing import Literal
 import numpy as np
 from pydantic import model_validator
 
+from ..analysis import avalanches
+from ..analysis.arch import blocking_arch
 from ..core.triggers import Periodic
 from ..core.walls import Motion, Segment
+from ..output.network import draw_network
+from ..output.vtk import write_grains
 from ..schema import Float, Int, described as _f
 from .base import Phase, Protocol, register, run_until
 from .deposition import save_figure
@@ -74,6 +78,9 @@ class SiloSettings(SettleSettings):
     tap_amplitude: Float = _f(0.006, "tap amplitude A [m] (0.6 cm); > 0", gt=0)
     tap_frequency: Float = _f(8.0, "tap frequency nu [Hz]; > 0", gt=0)
     avalanches: Int = _f(100, "avalanches to record after the first [-]; >= 1", ge=1)
+    jam_pictures: Int = _f(10, "jammed configurations written (VTK with the arch marked "
+                           "and a picture of the force network), the first ones [-]; >= 0",
+                           ge=0)
     discharge_time: Float = _f(100.0, "longest discharge [s] of simulated time; > 0", gt=0)
 
     @model_validator(mode="after")
@@ -91,6 +98,7 @@ class Silo(Protocol):
     settings = SiloSettings
     summary = ("2D silo (Pérez Sec. 4): discharge through a hole, re-injection, jams "
                "broken by taps, avalanche statistics")
+    summarize_sweep = staticmethod(avalanches.summarize_sweep)
 
     def __init__(self, settings, vessel):
         super().__init__(settings, vessel)
@@ -148,7 +156,7 @@ class Silo(Protocol):
         """avalanches.csv: one row per avalanche (the first marked)."""
         rows = results.get("avalanches", [])
         keys = ["number", "first", "size", "start_s", "end_s", "duration_s", "flow_rate_per_s",
-                "mass_flow_kg_per_s"]
+                "mass_flow_kg_per_s", "arch_size"]
         lines = [",".join(keys)] + [",".join(str(r[k]) for k in keys) for r in rows]
         path = rundir.path / "avalanches.csv"
         path.write_text("\n".join(lines) + "\n")
@@ -167,7 +175,7 @@ class Silo(Protocol):
         positive = sizes[sizes > 0]
         if positive.size:
             ax[0].hist(positive, bins=max(1, min(40, positive.size // 3 + 1)))
-            s, w = cumulative(sizes)
+            s, w = avalanches.cumulative(sizes)
             ax[1].semilogy(s, w, "o", ms=3)
         ax[0].set(xlabel="avalanche size s [disks]", ylabel="n(s)",
                   title=f"{np.sum(sizes == 0)} null avalanches not shown")
@@ -180,16 +188,6 @@ class Silo(Protocol):
         fig.suptitle(f"{self.title}: 2D silo, R = {results.get('R', float('nan')):.2f}, "
                      f"<s> = {results.get('mean_size', float('nan')):.1f}")
         return [save_figure(fig, rundir, "silo.png")]
-
-
-def cumulative(sizes):
-    """Pérez Eq. 39: w(s) = (number of avalanches of size >= s) / (number of size >= 1)
-    for s = 1..max, null avalanches left out; returns (s, w)."""
-    positive = np.sort(np.asarray(sizes, dtype=float)[np.asarray(sizes) > 0])
-    if positive.size == 0:
-        return np.array([]), np.array([])
-    s = np.arange(1, int(positive[-1]) + 1)
-    return s, (positive.size - np.searchsorted(positive, s, side="left")) / positive.size
 
 
 class Discharge(Phase):
@@ -240,7 +238,9 @@ class Discharge(Phase):
         while len(state["avalanches"]) <= p.avalanches and engine.time < state["end_time"]:
             if state["jammed"]:
                 state["jammed"] = False
-                self.close_avalanche(engine, state)
+                arch = blocking_arch(engine, FLOOR[0], FLOOR[1])
+                self.record_jam(engine, len(state["avalanches"]), arch)
+                self.close_avalanche(engine, state, arch)
                 if len(state["avalanches"]) <= p.avalanches:
                     self.tap(engine, state)
                 continue
@@ -331,8 +331,9 @@ class Discharge(Phase):
         v = engine.state.velocities
         return float(np.sqrt(np.max(np.einsum("ij,ij->i", v, v)))) < v0 / c
 
-    def close_avalanche(self, engine, state):
-        """End the current avalanche at the jam: its size, duration and flow rates."""
+    def close_avalanche(self, engine, state, arch=()):
+        """End the current avalanche at the jam: its size, duration, flow rates and the
+        disks of the blocking arch (``arch``, indices)."""
         a = state["current"]
         mass = float(np.mean(engine.state.masses))
         duration = state["last_exit_s"] - a["start_s"] if a["size"] else 0.0
@@ -340,9 +341,24 @@ class Discharge(Phase):
         state["avalanches"].append({
             "number": len(state["avalanches"]), "first": a["first"], "size": a["size"],
             "start_s": a["start_s"], "end_s": engine.time, "duration_s": duration,
-            "flow_rate_per_s": rate, "mass_flow_kg_per_s": rate * mass})
+            "flow_rate_per_s": rate, "mass_flow_kg_per_s": rate * mass,
+            "arch_size": len(arch), "arch": [int(i) for i in arch]})
         self.protocol.log(f"avalanche {len(state['avalanches']) - 1}: {a['size']} disks, "
                           f"jammed at t = {engine.time:.5g} s")
+
+    def record_jam(self, engine, number, arch):
+        """The jammed configuration of avalanche ``number`` with its arch marked, for the
+        first ``jam_pictures`` jams: jams/jam_000003.vtu (point field "marked") and
+        jams/jam_000003.png (the force network, output.network)."""
+        folder = self.protocol.folder
+        if folder is None or number >= self.p.jam_pictures:
+            return
+        folder = folder / "jams"
+        folder.mkdir(exist_ok=True)
+        write_grains(folder / f"jam_{number:06d}.vtu", engine.state, arch)
+        draw_network(engine, folder / f"jam_{number:06d}.png", arch,
+                     title=f"{self.protocol.title}: jam {number}, t = {engine.time:.4g} s, "
+                     f"arch of {len(arch)} disks")
 
     def tap(self, engine, state):
         """Every wall of the silo moves as y = A sin(2 pi nu t) for half a period."""
@@ -370,17 +386,23 @@ class Discharge(Phase):
         d, t0, v0 = self.scales(engine)
         rows = state["avalanches"]
         sizes = np.array([r["size"] for r in rows if not r["first"]], dtype=float)
-        flowing = [r for r in rows if not r["first"] and r["size"] > 0]
+        a = state["current"]
+        duration = state["last_exit_s"] - a["start_s"]
+        # the avalanche under way when the run ended (a hole too large to jam: the whole
+        # discharge): no size of the statistics, but a flow rate
+        running = {"first": a["first"], "size": a["size"], "start_s": a["start_s"],
+                   "duration_s": duration,
+                   "flow_rate_per_s": a["size"] / duration if duration > 0 else 0.0}
+        flowing = [r for r in (*rows, running) if r["size"] > 0 and r["duration_s"] > 0]
         out = {"R": self.p.hole / d, "d_ave_m": d, "t0_s": t0, "v0_m_per_s": v0,
-               "avalanches": rows, "count": int(sizes.size),
+               "avalanches": rows, "unfinished": running, "count": int(sizes.size),
                "null_avalanches": int(np.sum(sizes == 0)),
                "exited": state["exited"], "time_s": engine.time}
+        stats = avalanches.statistics(sizes)
         if sizes.size:
-            out["mean_size"] = float(np.mean(sizes))
-            out["mean_size_err"] = float(np.std(sizes, ddof=1) / math.sqrt(sizes.size)) \
-                if sizes.size > 1 else float("nan")
-            out["null_fraction"] = float(np.mean(sizes == 0))
-        if flowing:
-            out["mean_flow_rate_per_s"] = float(np.mean([r["flow_rate_per_s"]
-                                                         for r in flowing]))
+            out.update(mean_size=stats["mean"], mean_size_err=stats["mean_err"],
+                       null_fraction=stats["null_fraction"])
+        if flowing:            # disks per second over the time the silo flowed
+            out["mean_flow_rate_per_s"] = float(
+                sum(r["size"] for r in flowing) / sum(r["duration_s"] for r in flowing))
         return out

@@ -1,0 +1,185 @@
+"""Avalanche statistics of silo discharges (Pérez Sec. 4) and their sweep summary.
+
+For each hole size R = d_h/d_ave: the mean avalanche size <s> with its standard error
+(null avalanches included, the first avalanche of each run, the initial discharge, left
+out), the probability of a null avalanche, the normalized cumulative w(s) (Pérez Eq. 39)
+and the mean flow rate.  Across R, <s>(R) fitted (weighted by the standard errors) to
+
+    <s> = s0 exp(B R^2)               and        <s> = s0 / (R_c - R)^gamma,
+
+with parameter uncertainties from the covariance and chi^2 per degree of freedom.
+Pérez reports s0 = 1.64 +- 0.08, B = 0.0716 +- 0.0006 and s0 = 8.5e5, R_c = 6.7 +- 0.4,
+gamma = 8.2 +- 1.1; the summary fits graindyn's own points and prints both beside them.
+"""
+import json
+import math
+import pathlib
+
+import numpy as np
+from scipy.optimize import curve_fit
+
+PAPER = {"exp_square": {"s0": 1.64, "B": 0.0716},
+         "power_law": {"s0": 8.5e5, "R_c": 6.7, "gamma": 8.2}}
+
+
+def statistics(sizes):
+    """count, mean size, its standard error, null fraction of avalanche ``sizes``."""
+    s = np.asarray(sizes, dtype=float)
+    out = {"count": int(s.size), "null": int(np.sum(s == 0))}
+    if s.size:
+        out["mean"] = float(np.mean(s))
+        out["mean_err"] = float(np.std(s, ddof=1) / math.sqrt(s.size)) if s.size > 1 \
+            else float("nan")
+        out["null_fraction"] = float(np.mean(s == 0))
+    return out
+
+
+def exp_square(R, s0, B):
+    return s0 * np.exp(B * np.asarray(R) ** 2)
+
+
+def power_law(R, s0, R_c, gamma):
+    return s0 / np.abs(R_c - np.asarray(R)) ** gamma
+
+
+def _fit(model, R, mean, err, start, names):
+    """curve_fit of ``model`` to mean(R) weighted by err: parameters, errors, chi2/dof."""
+    R, mean, err = (np.asarray(a, dtype=float) for a in (R, mean, err))
+    dof = R.size - len(start)
+    if dof < 1:
+        return {"error": f"{R.size} points cannot fit {len(start)} parameters"}
+    try:
+        p, cov = curve_fit(model, R, mean, p0=start, sigma=err, absolute_sigma=True,
+                           maxfev=20000)
+    except (RuntimeError, ValueError) as failure:
+        return {"error": str(failure)}
+    chi2 = float(np.sum(((model(R, *p) - mean) / err) ** 2))
+    out = {"chi2_per_dof": chi2 / dof, "dof": dof}
+    for k, name in enumerate(names):
+        out[name] = float(p[k])
+        out[f"{name}_err"] = float(math.sqrt(cov[k, k])) if np.isfinite(cov[k, k]) \
+            else float("nan")
+    return out
+
+
+def fit_exp_square(R, mean, err):
+    """<s> = s0 exp(B R^2), fitted on log-linear start values."""
+    R = np.asarray(R, dtype=float)
+    B, log_s0 = np.polyfit(R**2, np.log(mean), 1)
+    return _fit(exp_square, R, mean, err, (math.exp(log_s0), B), ("s0", "B"))
+
+
+def fit_power_law(R, mean, err):
+    """<s> = s0/(R_c - R)^gamma, from R_c = max(R) + 1 and a log-log start."""
+    R = np.asarray(R, dtype=float)
+    best = None
+    for R_c in R.max() + np.array([0.5, 1.0, 2.0, 4.0]):
+        slope, log_s0 = np.polyfit(np.log(R_c - R), np.log(mean), 1)
+        fit = _fit(power_law, R, mean, err, (math.exp(log_s0), R_c, -slope),
+                   ("s0", "R_c", "gamma"))
+        if "error" not in fit and fit["R_c"] > R.max() and (
+                best is None or fit["chi2_per_dof"] < best["chi2_per_dof"]):
+            best = fit
+    return best or {"error": "no power law with R_c above the largest R fits"}
+
+
+def cumulative(sizes):
+    """Pérez Eq. 39: w(s) = (number of avalanches of size >= s) / (number of size >= 1)
+    for s = 1..max, null avalanches left out; returns (s, w)."""
+    positive = np.sort(np.asarray(sizes, dtype=float)[np.asarray(sizes) > 0])
+    if positive.size == 0:
+        return np.array([]), np.array([])
+    s = np.arange(1, int(positive[-1]) + 1)
+    return s, (positive.size - np.searchsorted(positive, s, side="left")) / positive.size
+
+
+def hole_rows(points):
+    """One row per hole size of a sweep's finished silo points (seeds pooled): R, the
+    statistics of the avalanches after each run's first, the mean flow rate and the
+    sizes themselves."""
+    grouped = {}
+    for p in points:
+        if p.status == "finished" and p.results:
+            grouped.setdefault(round(float(p.results["R"]), 6), []).append(p.results)
+    rows = []
+    for R in sorted(grouped):
+        sizes = [a["size"] for r in grouped[R] for a in r["avalanches"] if not a["first"]]
+        rates = [r["mean_flow_rate_per_s"] for r in grouped[R] if "mean_flow_rate_per_s" in r]
+        rows.append({"R": R, "runs": len(grouped[R]), **statistics(sizes),
+                     "flow_rate_per_s": float(np.mean(rates)) if rates else float("nan"),
+                     "sizes": sizes})
+    return rows
+
+
+def summarize_sweep(sweep_dir, points):
+    """Write silo_sweep.md, silo_sweep.json and the figures of <s>(R) with both fits
+    and of the collapse of w(s) against s/<s> (Pérez Figs. 6-7); returns the paths."""
+    sweep_dir = pathlib.Path(sweep_dir)
+    rows = hole_rows(points)
+    usable = [r for r in rows if r.get("count", 0) > 1 and r["mean"] > 0
+              and np.isfinite(r["mean_err"]) and r["mean_err"] > 0]
+    R = [r["R"] for r in usable]
+    mean = [r["mean"] for r in usable]
+    err = [r["mean_err"] for r in usable]
+    fits = {"exp_square": fit_exp_square(R, mean, err) if len(R) > 2 else
+            {"error": "fewer than 3 hole sizes"},
+            "power_law": fit_power_law(R, mean, err) if len(R) > 3 else
+            {"error": "fewer than 4 hole sizes"}, "paper": PAPER}
+    lines = ["# Avalanches of the 2D silo against the hole size (Pérez Sec. 4)", "",
+             "| R | runs | avalanches | <s> | null fraction | flow rate [disks/s] |",
+             "|---:|---:|---:|---:|---:|---:|"]
+    for r in rows:
+        lines.append(f"| {r['R']:.3f} | {r['runs']} | {r['count']} | "
+                     f"{r.get('mean', float('nan')):.1f} +- {r.get('mean_err', float('nan')):.1f}"
+                     f" | {r.get('null_fraction', float('nan')):.3f} | "
+                     f"{r['flow_rate_per_s']:.1f} |")
+    lines += ["", "Fits of <s>(R), weighted by the standard errors:", ""]
+    for name in ("exp_square", "power_law"):
+        fit = fits[name]
+        paper = ", ".join(f"{k} = {v}" for k, v in PAPER[name].items())
+        if "error" in fit:
+            lines.append(f"- {name}: not fitted ({fit['error']}); Pérez: {paper}")
+        else:
+            values = ", ".join(f"{k} = {fit[k]:.4g} +- {fit[k + '_err']:.2g}"
+                               for k in PAPER[name])
+            lines.append(f"- {name}: {values}, chi2/dof = {fit['chi2_per_dof']:.3g}; "
+                         f"Pérez: {paper}")
+    md = sweep_dir / "silo_sweep.md"
+    md.write_text("\n".join(lines) + "\n")
+    js = sweep_dir / "silo_sweep.json"
+    js.write_text(json.dumps({"rows": rows, "fits": fits}, indent=1, default=float))
+    return [md, js, _figure(sweep_dir / "figures" / "silo_sweep.png", rows, usable, fits)]
+
+
+def _figure(path, rows, usable, fits):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4.2))
+    for r in rows:
+        s, w = cumulative(r["sizes"])
+        if s.size and r.get("mean", 0) > 0:
+            ax[0].semilogy(s / r["mean"], w, ".", ms=3, label=f"R = {r['R']:.2f}")
+    ax[0].set(xlabel="s / <s>", ylabel="w(s) (Eq. 39)", title="collapse (Pérez Fig. 6)")
+    ax[0].legend(fontsize=7)
+    if usable:
+        R = np.array([r["R"] for r in usable])
+        ax[1].errorbar(R, [r["mean"] for r in usable], [r["mean_err"] for r in usable],
+                       fmt="o", label="graindyn")
+        grid = np.linspace(R.min(), R.max(), 100)
+        if "error" not in fits["exp_square"]:
+            f = fits["exp_square"]
+            ax[1].plot(grid, exp_square(grid, f["s0"], f["B"]), label="s0 exp(B R^2)")
+        if "error" not in fits["power_law"]:
+            f = fits["power_law"]
+            ax[1].plot(grid, power_law(grid, f["s0"], f["R_c"], f["gamma"]), "--",
+                       label="s0 / (R_c - R)^gamma")
+        ax[1].set_yscale("log")
+    ax[1].set(xlabel="R = d_h / d_ave", ylabel="<s>", title="Pérez Fig. 7")
+    ax[1].legend(fontsize=7)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
