@@ -19,22 +19,11 @@ def draw_network(engine, path, marked=(), title="", slice_width=None):
     from matplotlib.collections import EllipseCollection, LineCollection
 
     s = engine.state
-    up = 1 if s.dim == 2 else 2
-    pos, radii = s.positions, s.radii
-    if s.dim == 2:
-        shown = np.ones(s.n, bool)
-        cut = radii
-        across = 0
-    else:
-        across = 0
-        middle = 0.5 * (pos[:, 1].min() + pos[:, 1].max())
-        width = slice_width if slice_width is not None else 2.0 * float(radii.max())
-        depth = np.abs(pos[:, 1] - middle)
-        shown = (depth < 0.5 * width) & (depth < radii)
-        cut = np.sqrt(np.maximum(radii**2 - (pos[:, 1] - middle) ** 2, 0.0))
+    across, up = 0, (1 if s.dim == 2 else 2)
+    shown, cut = section(s, slice_width)
     is_marked = np.zeros(s.n, bool)
     is_marked[np.asarray(marked, dtype=np.int64)] = True
-    xy = pos[:, [across, up]]
+    xy = s.positions[:, [across, up]]
     fig, ax = plt.subplots(figsize=(6, 8))
     colours = np.where(is_marked[shown][:, None], [[0.85, 0.15, 0.1, 1.0]],
                        [[0.8, 0.8, 0.8, 1.0]])
@@ -66,6 +55,21 @@ def draw_network(engine, path, marked=(), title="", slice_width=None):
     fig.savefig(path, dpi=150)
     plt.close(fig)
     return path
+
+
+def section(state, slice_width=None):
+    """(shown (N,) bool, radius drawn (N,) [m]): in 2D every disk at its radius; in 3D
+    the spheres cut by the plane y = middle of the bed whose centre lies within
+    ``slice_width`` / 2 of it (default: the largest diameter), at the radius of their
+    cross-section sqrt(R^2 - dy^2)."""
+    if state.dim == 2:
+        return np.ones(state.n, bool), state.radii
+    y = state.positions[:, 1]
+    middle = 0.5 * (y.min() + y.max())
+    width = slice_width if slice_width is not None else 2.0 * float(state.radii.max())
+    depth = np.abs(y - middle)
+    shown = (depth < 0.5 * width) & (depth < state.radii)
+    return shown, np.sqrt(np.maximum(state.radii**2 - depth**2, 0.0))
 
 
 def _draw_walls(ax, walls, across, up, lo, hi):
