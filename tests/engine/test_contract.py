@@ -230,6 +230,26 @@ def test_relocated_grain_is_accounted_for(build):
     np.testing.assert_allclose(c.normal_force[c.wall == floor_index], MASS * G, rtol=1e-2)
 
 
+def test_a_held_grain_stays_put_until_released(build):
+    """Grain 1 is held in the air: it does not fall, has no kinetic or gravitational
+    energy, and grain 0 falls past it untouched; released at a new place at rest, it
+    falls from there like a free grain (z = z0 - g t^2 / 2 before it lands)."""
+    engine = build([[2 * R, 2 * R, 10 * R], [8 * R, 2 * R, 30 * R]],
+                   walls=gd.box((0, 0, 0), (12 * R, 4 * R, 40 * R)))
+    engine.hold([1])
+    engine.run(time=0.02)
+    s = engine.state
+    np.testing.assert_array_equal(s.positions[1], [8 * R, 2 * R, 30 * R])
+    one = engine.energies()
+    assert one["kinetic"] == pytest.approx(0.5 * MASS * np.sum(s.velocities[0] ** 2))
+    place = np.array([8 * R, 2 * R, 35 * R])
+    engine.release([1], [place], [np.zeros(3)])
+    start = engine.time
+    engine.run(time=0.01)
+    fallen = engine.time - start
+    assert s.positions[1, 2] == pytest.approx(35 * R - 0.5 * G * fallen**2, rel=1e-3)
+
+
 @pytest.mark.parametrize("support", ["floor", "fixed grain"])
 def test_relocated_grain_forgets_its_contacts(build, support):
     """A grain sliding on a support (a floor, or a fixed grain ten times larger, on its

@@ -162,6 +162,14 @@ class Engine(Protocol):
         they had (their tangential springs and other contact history are forgotten) and
         meet their new neighbours and walls from the next step on."""
 
+    def hold(self, indices) -> None:
+        """Stop grains ``indices`` and hold them in place: fixed obstacles to the others,
+        left out of the energies, until released (a reservoir of grains to rain in)."""
+
+    def release(self, indices, positions, velocities, angular_velocities=None) -> None:
+        """Free held grains ``indices`` at ``positions`` with ``velocities``, arriving as
+        ``relocate`` puts grains."""
+
     def set_motion(self, wall, motion: Motion) -> None:
         """Prescribe the motion (core.walls.Motion) of ``wall`` from now on: "fixed"
         stops it; "velocity" and "sinusoid" start from where the wall is now, at the

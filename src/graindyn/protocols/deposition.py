@@ -4,7 +4,7 @@ sample (protocols.prepare.settle_report) and draw it."""
 from typing import Literal
 
 from .base import Protocol, register
-from .phases import Settle, SettleSettings
+from .phases import SettleSettings, preparation
 
 
 class DepositionSettings(SettleSettings):
@@ -23,7 +23,7 @@ class Deposition(Protocol):
 
     def __init__(self, settings, vessel):
         super().__init__(settings, vessel)
-        self.phases = (Settle(settings, vessel),)
+        self.phases = preparation(settings, vessel)
 
     @classmethod
     def cross_check(cls, config):

@@ -50,7 +50,7 @@ from ..core.engine import OverlapError
 from ..schema import Float, described as _f
 from .base import Phase, Protocol, register
 from .deposition import save_figure
-from .phases import Settle, SettleSettings
+from .phases import SettleSettings, preparation
 
 PISTON = "piston"
 MEASURES = {"vertical": "sigma_top_Pa", "trace": "trace_Pa"}
@@ -113,7 +113,7 @@ class Oedometer(Protocol):
 
     def __init__(self, settings, vessel):
         super().__init__(settings, vessel)
-        self.phases = (Settle(settings, vessel), Load(self))
+        self.phases = (*preparation(settings, vessel), Load(self))
 
     @classmethod
     def cross_check(cls, config):

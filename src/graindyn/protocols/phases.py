@@ -5,9 +5,12 @@ from typing import Literal
 
 import numpy as np
 
-from ..core.triggers import EnergyRatioBelow, MaxSpeedBelow
+from ..core.triggers import EnergyRatioBelow, MaxSpeedBelow, Periodic
 from ..schema import Float, Section, described as _f
 from .base import Phase, run_until
+
+GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0         # the R1 and R2 low-discrepancy sequences
+PLASTIC = 1.32471795724474602596
 from .prepare import settle_report
 
 # random sequential insertion jams at these solid fractions (Torquato, Random
@@ -34,6 +37,14 @@ class SettleSettings(Section):
     threshold: Float = _f(1e-6, "value of the equilibrium criterion; > 0", gt=0)
     max_time: Float = _f(1.0, "longest settling time [s] of simulated time; (0, 1e4]",
                          gt=0, le=1e4)
+    filling: Literal["cloud", "rain"] = _f(
+        "cloud", "cloud: every grain released at once from the insertion; rain: the grains "
+        "rained in one by one from rain_height at rain_rate, as laboratories fill silos")
+    rain_rate: Float = _f(2000.0, "grains per second rained in (filling = rain); > 0",
+                          gt=0)
+    rain_height: Float | None = _f(None, "height [m] above the floor the grains are "
+                                   "released from (filling = rain; default: the top of "
+                                   "the container); > 0", gt=0)
 
     def fill_settings(self):
         """Keyword arguments of prepare.fill."""
@@ -107,3 +118,109 @@ class Hold(Phase):
 
     def run(self, engine, state, *, every=(), between=None):
         return run_until(engine, state, "end_time", self.time, every=every, between=between)
+
+
+def preparation(settings: SettleSettings, vessel):
+    """The phases that make a settled sample: Settle, after Rain when the grains are
+    rained in."""
+    settle = Settle(settings, vessel)
+    return (Rain(settings, vessel), settle) if settings.filling == "rain" else (settle,)
+
+
+class Rain(Phase):
+    """Gentle filling: every grain is first held in a reservoir above the container
+    (Engine.hold), then released one by one at ``rain_rate`` grains per second from
+    ``rain_height`` above the floor, at rest, at places spread over the container's
+    cross-section by a low-discrepancy sequence (R1 in 2D, R2 in 3D: Roberts 2018), a
+    place being skipped while a grain released before is still there; the phase ends
+    when every grain is released (the count sets the fill height) and the Settle that
+    follows lets the last ones land.  Unlike a cloud dropped at once, which lands as a
+    block and can lock wall friction downward, each grain arrives alone on the pile."""
+
+    name = "rain"
+
+    def __init__(self, settings: SettleSettings, vessel):
+        self.p = settings
+        self.vessel = vessel
+
+    def duration(self):
+        return self.p.max_time
+
+    def _places(self, k):
+        """The k-th place (x, y) of the sequence in the container's cross-section."""
+        v = self.vessel
+        if v.dim == 2:
+            return np.array([(0.5 + GOLDEN * k) % 1.0])
+        return np.array([(0.5 + k / PLASTIC) % 1.0, (0.5 + k / PLASTIC**2) % 1.0])
+
+    def _place(self, k, radius):
+        """Grain position [m] of sequence point k, or None outside a cylinder."""
+        v = self.vessel
+        up = v.dim - 1
+        u = self._places(k)
+        lo, hi = np.array(v.lo[:up]) + radius, np.array(v.hi[:up]) - radius
+        point = np.zeros(3)
+        point[:up] = lo + u * (hi - lo)
+        if v.shape == "cylinder" and np.hypot(*(point[:2] - v.center)) > v.radius - radius:
+            return None
+        height = self.p.rain_height if self.p.rain_height is not None else v.top - v.floor
+        point[up] = v.floor + height - radius
+        return point
+
+    def run(self, engine, state, *, every=(), between=None):
+        s = engine.state
+        up = self.vessel.dim - 1
+        if "released" not in state:
+            gap = 2.2 * float(s.radii.max())
+            lo, hi = np.array(self.vessel.lo[:up]), np.array(self.vessel.hi[:up])
+            per_axis = np.maximum(1, ((hi - lo) // gap).astype(int))
+            cells = int(np.prod(per_axis))
+            k = np.arange(s.n)
+            reservoir = np.zeros((s.n, 3))
+            layer, cell = np.divmod(k, cells)
+            index = np.array(np.unravel_index(cell, per_axis)).T
+            reservoir[:, :up] = lo + (index + 0.5) * gap
+            reservoir[:, up] = self.vessel.top + 10.0 * gap + layer * gap
+            engine.relocate(k, reservoir, np.zeros((s.n, 3)))
+            engine.hold(k)
+            state.update(released=0, place=0, start=engine.time,
+                         end_time=engine.time + self.p.max_time)
+        interval = max(1.0 / self.p.rain_rate, 1e-4)
+
+        def rain(engine):
+            due = min(s.n, int((engine.time - state["start"]) * self.p.rain_rate) + 1)
+            tries = 0
+            while state["released"] < due and tries < 64:
+                i = state["released"]
+                point = self._place(state["place"], s.radii[i])
+                state["place"] += 1
+                tries += 1
+                if point is None or self._occupied(s, point, s.radii[i]):
+                    continue
+                engine.release([i], point[None, :], np.zeros((1, 3)))
+                state["released"] += 1
+                tries = 0
+
+        interrupted = []
+
+        def pause(engine):
+            if between is not None and between(engine):
+                interrupted.append(True)
+                return True
+            return state["released"] >= s.n
+
+        run_until(engine, state, "end_time", 0.0,
+                  every=[*every, (Periodic(time=interval), rain)], between=pause)
+        if interrupted:
+            return "stopped"
+        if state["released"] < s.n:
+            raise ValueError(f"rain: {state['released']} of {s.n} grains released in "
+                             f"max_time = {self.p.max_time} s: raise rain_rate or max_time")
+        return "done"
+
+    @staticmethod
+    def _occupied(s, point, radius):
+        """True when a free grain overlaps a grain of ``radius`` at ``point``."""
+        free = s.fixed == 0
+        d2 = np.sum((s.positions[free] - point) ** 2, axis=1)
+        return bool(np.any(d2 < (s.radii[free] + radius) ** 2))

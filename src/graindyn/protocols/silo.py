@@ -45,7 +45,7 @@ from ..output.vtk import write_grains
 from ..schema import Float, Int, described as _f
 from .base import Phase, Protocol, register, run_until
 from .deposition import save_figure
-from .phases import Settle, SettleSettings
+from .phases import SettleSettings, preparation
 
 GATE = "gate"
 FLOOR = ("floor_left", "floor_right")
@@ -104,7 +104,8 @@ class Silo(Protocol):
         super().__init__(settings, vessel)
         # the floor is three segments: the settled bed's report measures from the
         # lowest disk and weighs no single wall
-        self.phases = (Settle(settings, replace(vessel, bottom_wall=None)), Discharge(self))
+        self.phases = (*preparation(settings, replace(vessel, bottom_wall=None)),
+                       Discharge(self))
 
     @classmethod
     def cross_check(cls, config):

@@ -607,6 +607,24 @@ class Simulation:
         self.counters[loop.FORCE_REBUILD] = 1
         self.reset_integrator_history()
 
+    def hold(self, indices):
+        """Stop grains ``indices`` and hold them where they are (engine.Engine.hold): they
+        become fixed obstacles, out of the energies, until ``release``."""
+        idx = np.asarray(indices, dtype=np.int64).reshape(-1)
+        if idx.size and (idx.min() < 0 or idx.max() >= self.state.n):
+            raise ValueError(f"hold needs grain indices in 0..{self.state.n - 1}")
+        s = self.state
+        s.fixed[idx] = 1
+        s.velocities[idx] = 0.0
+        s.angular_velocities[idx] = 0.0
+        self.reset_integrator_history()
+
+    def release(self, indices, positions, velocities, angular_velocities=None):
+        """Free held grains ``indices`` at ``positions`` with ``velocities`` (and
+        ``angular_velocities``), as relocate puts them (engine.Engine.release)."""
+        self.relocate(indices, positions, velocities, angular_velocities)
+        self.state.fixed[np.asarray(indices, dtype=np.int64).reshape(-1)] = 0
+
     def set_motion(self, wall, motion):
         """Prescribe ``motion`` (walls.Motion) to ``wall`` (index or name) from now on
         (engine.Engine.set_motion): the motion starts at its ``start`` [s] or now,
