@@ -123,7 +123,7 @@ def run_lammps(bed, steps, work):
     n = len(bed)
     data = work / f"bed_{n}.data"
     top = float(np.max(bed[:, 1] + bed[:, 2])) + 0.05
-    lines = [f"LAMMPS 2D silo bed", "", f"{n} atoms", "1 atom types", "",
+    lines = ["LAMMPS 2D silo bed", "", f"{n} atoms", "1 atom types", "",
              f"0.0 {WIDTH} xlo xhi", f"0.0 {top} ylo yhi", "-0.005 0.005 zlo zhi", "",
              "Atoms # sphere", ""]
     lines += [f"{k + 1} 1 {2 * float(r)!r} {DENSITY} {float(x)!r} {float(y)!r} 0.0"
