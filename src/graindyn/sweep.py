@@ -217,6 +217,8 @@ class Sweep:
             raise ConfigError(f"{base_path}: {err}") from None
         seeds = spec.seeds if spec.seeds is not None else [base.run.seed]
         data = base.model_dump(mode="json")
+        if spec.overrides:
+            base, data = _overridden(path, data, spec.overrides)
         problems = []
         points = [Point(None, REFERENCE, None, None, None, seed, f"{REFERENCE}/seed-{seed}",
                         _with(data, None, None, seed)) for seed in seeds]
@@ -255,6 +257,31 @@ class Sweep:
             raise ConfigError(f"{path}: {len(problems)} problem(s)\n  "
                               + "\n  ".join(problems))
         return cls(path, spec, base_path, base, points)
+
+
+def _overridden(path, data, overrides):
+    """The base config (Config, and its dict) with the sweep file's ``overrides``;
+    ConfigError naming each override that does not fit."""
+    data = copy.deepcopy(data)
+    problems = []
+    for parameter, value in overrides.items():
+        try:
+            container, key = _resolve(data, parameter)
+        except ValueError as err:
+            problems.append(f"overrides.{parameter}: {err}")
+            continue
+        container[key] = value
+    if not problems:
+        from .runner import check
+        try:
+            config = validate(data, "overrides")
+            check(config)
+            return config, config.model_dump(mode="json")
+        except ConfigError as err:
+            lines = str(err).splitlines()
+            problems += [f"overrides: {line.strip()}" for line in
+                         (lines[1:] if lines[0].endswith("problem(s)") else lines)]
+    raise ConfigError(f"{path}: {len(problems)} problem(s)\n  " + "\n  ".join(problems))
 
 
 def _with(data, parameter, value, seed):

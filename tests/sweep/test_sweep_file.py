@@ -61,6 +61,14 @@ BAD = [
     ("value that breaks a cross-check",
      {"vary": [{"parameter": "contact.tangential", "values": ["mindlin", "stick"]}]},
      ["contact.tangential = 'stick'"]),
+    ("override of an unknown field", {"overrides": {"engine.skni": 1e-4}},
+     ["overrides.engine.skni", "no field 'skni'"]),
+    ("override with a bad value", {"overrides": {"engine.overlap_limit": -1.0}},
+     ["overrides", "overlap_limit = -1.0"]),
+    ("override of the seed", {"overrides": {"run.seed": 4}}, ["run.seed", "seeds"]),
+    ("override of a varied parameter",
+     {"overrides": {FRICTION["parameter"]: 0.3}, "vary": [FRICTION]},
+     ["vary.0.parameter", "also in overrides"]),
     ("time step too large for a value",
      {"vary": [{"parameter": "engine.dt", "values": [1e-7, 1e-3]}]},
      ["engine.dt = 0.001", "engine.dt"]),
@@ -142,6 +150,18 @@ def test_points_configs_and_names(tmp_path):
     assert reference.config.model_dump() == validate(
         {**json.loads(sweep.base.model_dump_json()), "run": {
             **sweep.base.run.model_dump(), "seed": 1}}).model_dump()
+
+
+def test_overrides_change_every_point_the_reference_included(tmp_path):
+    sweep = Sweep.load(write_sweep(tmp_path, {"overrides": {
+        "engine.overlap_limit": 0.05, "materials.steel.youngs_modulus": 3e9},
+        "vary": [FRICTION]}))
+    assert len(sweep.points) == 3
+    for p in sweep.points:
+        assert p.config.engine.overlap_limit == 0.05
+        assert p.config.materials[1].youngs_modulus == 3e9
+    assert sweep.base.engine.overlap_limit == 0.05
+    assert [p.config.materials[0].friction_sliding for p in sweep.points] == [0.5, 0.2, 0.4]
 
 
 def test_default_seed_is_the_base_seed(tmp_path):

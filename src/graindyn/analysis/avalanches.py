@@ -18,6 +18,8 @@ import pathlib
 import numpy as np
 from scipy.optimize import curve_fit
 
+from .flow import beverloo, fit_beverloo
+
 PAPER = {"exp_square": {"s0": 1.64, "B": 0.0716},
          "power_law": {"s0": 8.5e5, "R_c": 6.7, "gamma": 8.2}}
 
@@ -107,8 +109,21 @@ def hole_rows(points):
         rates = [r["mean_flow_rate_per_s"] for r in grouped[R] if "mean_flow_rate_per_s" in r]
         rows.append({"R": R, "runs": len(grouped[R]), **statistics(sizes),
                      "flow_rate_per_s": float(np.mean(rates)) if rates else float("nan"),
+                     "flow_rate_err": float(np.std(rates, ddof=1) / math.sqrt(len(rates)))
+                     if len(rates) > 1 else float("nan"),
+                     "d_ave_m": grouped[R][0].get("d_ave_m"),
+                     "g_m_per_s2": grouped[R][0].get("g_m_per_s2"),
                      "sizes": sizes})
     return rows
+
+
+def flow_fit(rows):
+    """The Beverloo fit (analysis.flow.fit_beverloo) of the hole rows' mean flow rates,
+    weighted by their seed-to-seed standard errors when every row has one."""
+    return fit_beverloo([r["R"] for r in rows], [r["flow_rate_per_s"] for r in rows],
+                        [r["flow_rate_err"] for r in rows],
+                        d=rows[0]["d_ave_m"] if rows else None,
+                        g=rows[0]["g_m_per_s2"] if rows else None)
 
 
 def summarize_sweep(sweep_dir, points):
@@ -124,7 +139,7 @@ def summarize_sweep(sweep_dir, points):
     fits = {"exp_square": fit_exp_square(R, mean, err) if len(R) > 2 else
             {"error": "fewer than 3 hole sizes"},
             "power_law": fit_power_law(R, mean, err) if len(R) > 3 else
-            {"error": "fewer than 4 hole sizes"}, "paper": PAPER}
+            {"error": "fewer than 4 hole sizes"}, "paper": PAPER, "beverloo": flow_fit(rows)}
     lines = ["# Avalanches of the 2D silo against the hole size (Pérez Sec. 4)", "",
              "| R | runs | avalanches | <s> | null fraction | flow rate [disks/s] |",
              "|---:|---:|---:|---:|---:|---:|"]
@@ -132,7 +147,7 @@ def summarize_sweep(sweep_dir, points):
         lines.append(f"| {r['R']:.3f} | {r['runs']} | {r['count']} | "
                      f"{r.get('mean', float('nan')):.1f} +- {r.get('mean_err', float('nan')):.1f}"
                      f" | {r.get('null_fraction', float('nan')):.3f} | "
-                     f"{r['flow_rate_per_s']:.1f} |")
+                     f"{r['flow_rate_per_s']:.1f} +- {r['flow_rate_err']:.1f} |")
     lines += ["", "Fits of <s>(R), weighted by the standard errors:", ""]
     for name in ("exp_square", "power_law"):
         fit = fits[name]
@@ -144,6 +159,16 @@ def summarize_sweep(sweep_dir, points):
                                for k in PAPER[name])
             lines.append(f"- {name}: {values}, chi2/dof = {fit['chi2_per_dof']:.3g}; "
                          f"Pérez: {paper}")
+    fit = fits["beverloo"]
+    if "error" in fit:
+        lines.append(f"- flow rate: Beverloo not fitted ({fit['error']})")
+    else:
+        lines.append(f"- flow rate, Q = A (R - k)^(3/2) (Beverloo in 2D): A = {fit['A']:.4g} "
+                     f"+- {fit['A_err']:.2g} disks/s, k = {fit['k']:.3g} +- {fit['k_err']:.2g}"
+                     + (f", C = A sqrt(d/g) = {fit['C']:.3g} +- {fit['C_err']:.2g}"
+                        if "C" in fit else "")
+                     + (f", chi2/dof = {fit['chi2_per_dof']:.3g}" if "chi2_per_dof" in fit
+                        else ""))
     md = sweep_dir / "silo_sweep.md"
     md.write_text("\n".join(lines) + "\n")
     js = sweep_dir / "silo_sweep.json"
@@ -156,13 +181,12 @@ def _figure(path, rows, usable, fits):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(1, 2, figsize=(11, 4.2))
+    fig, ax = plt.subplots(1, 3, figsize=(15.5, 4.2))
     for r in rows:
         s, w = cumulative(r["sizes"])
         if s.size and r.get("mean", 0) > 0:
             ax[0].semilogy(s / r["mean"], w, ".", ms=3, label=f"R = {r['R']:.2f}")
     ax[0].set(xlabel="s / <s>", ylabel="w(s) (Eq. 39)", title="collapse (Pérez Fig. 6)")
-    ax[0].legend(fontsize=7)
     if usable:
         R = np.array([r["R"] for r in usable])
         ax[1].errorbar(R, [r["mean"] for r in usable], [r["mean_err"] for r in usable],
@@ -177,7 +201,21 @@ def _figure(path, rows, usable, fits):
                        label="s0 / (R_c - R)^gamma")
         ax[1].set_yscale("log")
     ax[1].set(xlabel="R = d_h / d_ave", ylabel="<s>", title="Pérez Fig. 7")
-    ax[1].legend(fontsize=7)
+    flowing = [r for r in rows if np.isfinite(r["flow_rate_per_s"])]
+    if flowing:
+        R = np.array([r["R"] for r in flowing])
+        ax[2].errorbar(R, [r["flow_rate_per_s"] for r in flowing],
+                       [r["flow_rate_err"] for r in flowing], fmt="o", label="graindyn")
+        fit = fits["beverloo"]
+        if "error" not in fit:
+            grid = np.linspace(max(fit["k"], 0.0), R.max(), 100)
+            ax[2].plot(grid, beverloo(grid, fit["A"], fit["k"]),
+                       label=f"A (R - k)^1.5, k = {fit['k']:.2f}")
+    ax[2].set(xlabel="R = d_h / d_ave", ylabel="flow rate [disks/s]",
+              title="discharge rate (Beverloo)")
+    for a in ax:
+        if a.get_legend_handles_labels()[0]:
+            a.legend(fontsize=7)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)

@@ -3,6 +3,8 @@
 ```toml
 base = "oedometer.toml"          # the reference run config, relative to this file
 seeds = [1, 2, 3]                # random seeds per point (default: the base run.seed)
+[overrides]                      # optional: base fields every point changes (dotted paths)
+"output.vtk_every" = 10.0
 [[vary]]
 parameter = "materials.sand.youngs_modulus"   # dotted path into the config
 values = [1.12e7, 1.125e8, 1.125e9, 1.8e10]
@@ -14,6 +16,7 @@ This module checks the file's own shape (unknown keys, lengths, duplicates); wha
 values mean is checked by building each point's ``Config`` (``graindyn.sweep``).
 """
 import pathlib
+import re
 import warnings
 from typing import Any
 
@@ -25,12 +28,14 @@ from .models import Float, Int, Section, moved
 # config fields a sweep sets itself: varying them would be silently overridden
 RESERVED = {"run.seed": "the sweep sets it per point: list the seeds in 'seeds'",
             "run.threads": "the sweep sets it to --threads-per-worker"}
+# a dotted path into the config: materials.sand.youngs_modulus
+PATH = re.compile(r"^[A-Za-z0-9_]+(\.[A-Za-z0-9_]+)*$")
 
 
 class VarySection(Section):
     """One parameter varied around the base config, the others kept at their base values."""
 
-    parameter: str = Field(..., min_length=1, pattern=r"^[A-Za-z0-9_]+(\.[A-Za-z0-9_]+)*$",
+    parameter: str = Field(..., min_length=1, pattern=PATH.pattern,
                            description="dotted path into the config, materials (and "
                            "other named list items) by name: materials.sand.youngs_modulus")
     values: list[Any] = Field(..., min_length=1, description="values the parameter takes, "
@@ -79,6 +84,9 @@ class SweepFile(Section):
                       "config, relative to the sweep file")
     seeds: list[Int] | None = Field(None, min_length=1, description="random seeds [-] of "
                                     "every point (each >= 0); default: the base run.seed")
+    overrides: dict[str, Any] = Field({}, description="fields of the base config "
+                                      "changed for every point, the reference included: "
+                                      "dotted path -> value (a shorter run, no VTK...)")
     vary: list[VarySection] = Field([], description="parameters varied one at a time")
 
     @field_validator("seeds")
@@ -91,6 +99,20 @@ class SweepFile(Section):
                 raise ValueError(f"seeds = {seeds}: a seed is listed twice")
         return seeds
 
+    @field_validator("overrides")
+    @classmethod
+    def _overridable(cls, overrides):
+        """Paths as vary's (older paths renamed), none the sweep sets itself."""
+        out = {}
+        for path, value in overrides.items():
+            if not PATH.fullmatch(path):
+                raise ValueError(f"{path!r} is not a dotted path into the config")
+            path = VarySection._present_path(path)
+            if path in RESERVED:
+                raise ValueError(f"{path!r} cannot be overridden: {RESERVED[path]}")
+            out[path] = value
+        return out
+
     @model_validator(mode="after")
     def _distinct_parameters(self):
         seen = {}
@@ -99,6 +121,9 @@ class SweepFile(Section):
                 raise ValueError(f"vary.{k}.parameter = {vary.parameter!r} is already "
                                  f"varied in vary.{seen[vary.parameter]}: merge the values")
             seen[vary.parameter] = k
+            if vary.parameter in self.overrides:
+                raise ValueError(f"vary.{k}.parameter = {vary.parameter!r} is also in "
+                                 "overrides: give its base value there or vary it, not both")
         return self
 
 

@@ -396,6 +396,7 @@ class Discharge(Phase):
                    "flow_rate_per_s": a["size"] / duration if duration > 0 else 0.0}
         flowing = [r for r in (*rows, running) if r["size"] > 0 and r["duration_s"] > 0]
         out = {"R": self.p.hole / d, "d_ave_m": d, "t0_s": t0, "v0_m_per_s": v0,
+               "g_m_per_s2": float(np.linalg.norm(engine.gravity)),
                "avalanches": rows, "unfinished": running, "count": int(sizes.size),
                "null_avalanches": int(np.sum(sizes == 0)),
                "exited": state["exited"], "time_s": engine.time}
