@@ -61,6 +61,43 @@ def test_piston_pushes_grain_and_reports_force_and_work():
     assert f_floor == pytest.approx(4 / 3 * e_star * math.sqrt(R) * 5e-6**1.5, rel=2e-2)
 
 
+def test_free_piston_follows_newtons_law_under_its_applied_force():
+    """A piston of mass M with nothing in front of it, pushed by
+    F(t) = F0 + F1 sin(w t + phase): x(t) = F0 t^2/(2M) + F1/(M w) (t cos(phase)
+    - (sin(w t + phase) - sin(phase))/w), to first order in dt (semi-implicit Euler),
+    along its direction only."""
+    from graindyn.core.walls import walls_advance
+
+    M, F0, F1, f, phase, dt = 0.2, 3.0, 1.5, 50.0, 0.4, 1e-5
+    u = np.array([0.0, 0.6, -0.8])
+    kind, row = gd.Motion("piston", direction=tuple(u), force=F0, force_amplitude=F1,
+                          frequency=f, phase=phase, mass=M).row()
+    w = 2 * math.pi * f
+    arrays = (np.array([kind]), row[None, :].copy(), np.zeros((1, 3)), np.zeros((1, 3)),
+              np.zeros((1, 3)), np.zeros((1, 3)))
+    for n in range(4000):
+        walls_advance(*arrays, n * dt, dt)
+    t = 4000 * dt
+    x = F0 * t**2 / (2 * M) + F1 / (M * w) * (t * math.cos(phase)
+                                             - (math.sin(w * t + phase) - math.sin(phase)) / w)
+    offset, velocity = arrays[3][0], arrays[4][0]
+    np.testing.assert_allclose(offset, x * u, rtol=2e-3)
+    v = F0 * t / M + F1 / (M * w) * (math.cos(phase) - math.cos(w * t + phase))
+    np.testing.assert_allclose(velocity, v * u, rtol=2e-3)
+    assert gd.Motion.from_row(kind, row) == gd.Motion(
+        "piston", direction=tuple(u), force=F0, force_amplitude=F1, frequency=f,
+        phase=phase, mass=M)
+
+
+@pytest.mark.parametrize("settings", [dict(mass=0.0), dict(mass=-1.0),
+                                      dict(mass=1.0, force_amplitude=-1.0),
+                                      dict(mass=1.0, frequency=-1.0),
+                                      dict(mass=1.0, force=math.inf)])
+def test_piston_refuses_what_has_no_meaning(settings):
+    with pytest.raises(ValueError, match="piston motion needs mass > 0"):
+        gd.Motion("piston", **settings).row()
+
+
 def test_grains_stay_inside_a_cylinder(rng):
     from graindyn.protocols.prepare import CylinderRegion, random_insertion
 

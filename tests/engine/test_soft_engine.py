@@ -7,7 +7,9 @@ import pytest
 import graindyn as gd
 from graindyn.engines.soft.integrators import NAMES
 
-from .test_contract import DOWN, R, floor, soft
+from .test_contract import DOWN, MASS, R, floor, soft
+
+MASS_WEIGHT = MASS * 9.81
 
 pytestmark = pytest.mark.usefixtures("one_thread")
 
@@ -64,6 +66,64 @@ def test_servo_settings_are_required_once_and_kept_after():
     servo = sim.walls.motion_of("piston")
     assert (servo.kind, servo.force, servo.gain, servo.max_speed, servo.direction) == (
         "servo", 2e-3, 0.5, 0.01, (0.0, 0.0, -1.0))
+
+
+def _grain_under_a_piston(force):
+    """A damped grain on the floor with a piston of 10 grain masses resting on it,
+    pushed down by ``force`` [N] (core.walls, piston motion)."""
+    walls = [floor(), gd.Plane((0.0, 0.0, 2 * R), (0.0, 0.0, -1.0), name="piston")]
+    sim = soft([[0.0, 0.0, R]], walls=walls, restitution=0.3)
+    sim.set_motion("piston", gd.Motion("piston", direction=(0.0, 0.0, -1.0), force=force,
+                                       mass=10 * sim.state.masses[0]))
+    return sim
+
+
+def test_a_piston_comes_to_rest_on_the_grain_it_presses():
+    """The piston's applied force and the grain's weight end on the floor, the piston
+    carrying its force (static equilibrium of the column, to 1e-4), after its fall onto
+    the grain and the oscillations damped by the contacts."""
+    force = 20 * MASS_WEIGHT
+    sim = _grain_under_a_piston(force)
+    sim.run(time=0.2)
+    walls = sim.walls
+    assert walls.normal_force(walls.index("piston")) == pytest.approx(force, rel=1e-4)
+    assert walls.normal_force(walls.index("floor")) == pytest.approx(force + MASS_WEIGHT,
+                                                                      rel=1e-4)
+    assert abs(walls.velocity[walls.index("piston"), 2]) < 1e-6
+    assert sim.walls.motion_of("piston").kind == "piston"
+
+
+def test_a_piston_resumes_to_the_bit():
+    """A snapshot taken while the piston oscillates on the grain continues bit for bit."""
+    sim = _grain_under_a_piston(20 * MASS_WEIGHT)
+    sim.run(time=2e-3)
+    saved = sim.snapshot()
+    sim.run(time=3e-3)
+    again = _grain_under_a_piston(20 * MASS_WEIGHT)
+    again.restore(saved)
+    again.run(time=3e-3)
+    for name, value in sim.snapshot().items():
+        np.testing.assert_array_equal(again.snapshot()[name], value, err_msg=name)
+
+
+def test_a_checkpoint_of_eight_motion_columns_still_resumes():
+    """Checkpoints written before the piston kept 8 motion columns per wall (no mass):
+    they restore with a zero mass column and continue as the run they came from."""
+    motion = gd.Motion("sinusoid", direction=(0, 0, 1), amplitude=1e-5, frequency=40.0)
+
+    def build():
+        return soft([[0.0, 0.0, R]], walls=[gd.Plane((0, 0, 0), (0, 0, 1), motion=motion)])
+
+    sim = build()
+    sim.run(time=1e-3)
+    saved = sim.snapshot()
+    saved["walls/motion"] = saved["walls/motion"][:, :8]
+    again = build()
+    again.restore(saved)
+    sim.run(time=1e-3)
+    again.run(time=1e-3)
+    np.testing.assert_array_equal(again.state.positions, sim.state.positions)
+    np.testing.assert_array_equal(again.walls.offset, sim.walls.offset)
 
 
 def test_skin_is_the_one_the_lists_use():

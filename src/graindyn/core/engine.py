@@ -174,7 +174,8 @@ class Engine(Protocol):
         """Prescribe the motion (core.walls.Motion) of ``wall`` from now on: "fixed"
         stops it; "velocity" and "sinusoid" start from where the wall is now, at the
         motion's ``start`` [s] (simulated time) or now if that has passed; "servo" as
-        set_servo."""
+        set_servo; "piston" makes it a wall of a mass driven by an applied force and by
+        the grains (core.walls), from its velocity now."""
 
     def set_servo(self, wall, *, force=None, stress=None, gain=None, time_constant=None,
                   stiffness=None, max_speed=None, direction=None) -> None:

@@ -8,10 +8,12 @@ geometry (W, 10) (GEOMETRY_WIDTH): plane: origin (3), unit normal (3), 0, 0 0 0;
 cylinder: a point of the axis (3), unit axis (3), radius [m], 0 0 0; segment: start
 (corner) (3), first edge end - start (3) [m], 0, second edge (3) [m] (0 0 0 for a line
 segment); motion_kind (W,)
-0 fixed / 1 constant velocity / 2 sinusoid / 3 servo; motion (W, 8) = unit direction
-(3), then speed [m/s], amplitude [m], frequency [Hz], phase [rad] (velocity, sinusoid)
-or target force [N], gain [m/(N s)], largest speed [m/s], unused (servo), and the start
-time [s]; offset (W, 3) [m] and velocity (W, 3) [m/s] of each wall (state).
+0 fixed / 1 constant velocity / 2 sinusoid / 3 servo / 4 piston; motion (W, 9)
+(MOTION_WIDTH) = unit direction (3), then speed [m/s], amplitude [m], frequency [Hz],
+phase [rad] (velocity, sinusoid) or target force [N], gain [m/(N s)], largest speed
+[m/s], unused (servo) or mean force [N], force amplitude [N], frequency [Hz], phase
+[rad] (piston), the start time [s], and the piston's mass [kg] (0 for the others);
+offset (W, 3) [m] and velocity (W, 3) [m/s] of each wall (state).
 
 The servo is a stress-controlled wall: a velocity servo on the force the grains exert
 against its direction of motion u, from the previous force evaluation,
@@ -20,6 +22,19 @@ so the force error decays as exp(-t K g) when the sample in front of the wall ha
 stiffness K [N/m].  With g <= 1/(K tau) the wall closes the error no faster than the
 time constant tau and, having no inertia, cannot overshoot by itself; the protocol that
 uses it (protocols/oedometer.py) sets g from the stiffness of the wall's contacts.
+
+The piston is a rigid wall of mass M driven along u by an applied force and by the
+grains: the loading plate of a load-controlled test (a weight falling on the sample,
+Oquendo et al.'s top wall that "falls down with the initial pressure p0", or Karrech et
+al.'s plate under a cyclic stress), with the inertia a velocity servo lacks,
+
+    M ds/dt = F_applied(t) - F,   F_applied(t) = F_mean + F_amp sin(2 pi f (t - t_start) + phase),
+
+s = v . u its speed into the grains, F = -force . u as above.  Its own weight is not
+added: put it in F_mean.  Semi-implicit Euler with the force of the last evaluation
+(s += dt (F_applied(t) - F) / M, then x += s u dt), first order as the servo, stable for
+dt below 2 sqrt(M / K) against contacts of stiffness K, far above a grain step when M
+is a few grain masses or more.
 """
 import math
 from dataclasses import dataclass, field
@@ -30,7 +45,8 @@ from .._jit import scalar, kernel
 
 PLANE, CYLINDER, SEGMENT = 0, 1, 2
 GEOMETRY_WIDTH = 10        # columns of Walls.geometry (module docstring)
-FIXED, VELOCITY, SINUSOID, SERVO = 0, 1, 2, 3
+FIXED, VELOCITY, SINUSOID, SERVO, PISTON = 0, 1, 2, 3, 4
+MOTION_WIDTH = 9           # columns of Walls.motion (module docstring)
 
 
 def _unit(v, what):
@@ -48,7 +64,10 @@ class Motion:
     "sinusoid": x(t) = x0 + direction amplitude (sin(2 pi f (t-start) + phase) - sin(phase));
     "servo": moves along ``direction`` (into the grains) at
     clamp(gain (force - F), -max_speed, max_speed) where F [N] is the force the grains
-    exert against ``direction``, ``force`` the target [N], ``gain`` [m/(N s)].
+    exert against ``direction``, ``force`` the target [N], ``gain`` [m/(N s)];
+    "piston": a wall of ``mass`` [kg] pushed along ``direction`` by
+    force + force_amplitude sin(2 pi frequency (t - start) + phase) [N] and held back by
+    F (module docstring); it starts with the wall's velocity along ``direction``.
     """
 
     kind: str = "fixed"
@@ -61,35 +80,50 @@ class Motion:
     force: float = 0.0
     gain: float = 0.0
     max_speed: float = 0.0
+    force_amplitude: float = 0.0
+    mass: float = 0.0
 
     def row(self):
-        """(kind id, (8,) parameters) for the kernel."""
+        """(kind id, (MOTION_WIDTH,) parameters) for the kernel."""
+        row = np.zeros(MOTION_WIDTH)
+        row[7] = self.start
         if self.kind == "fixed":
-            return FIXED, np.zeros(8)
+            return FIXED, np.zeros(MOTION_WIDTH)
         if self.kind == "velocity":
             v = np.asarray(self.velocity, dtype=np.float64)
             speed = float(np.linalg.norm(v))
             u = v / speed if speed > 0 else np.zeros(3)
-            return VELOCITY, np.array([*u, speed, 0.0, 0.0, 0.0, self.start])
+            row[:4] = *u, speed
+            return VELOCITY, row
         if self.kind == "sinusoid":
             if self.amplitude < 0 or self.frequency <= 0:
                 raise ValueError("sinusoid motion needs amplitude >= 0 and frequency > 0 [Hz]")
-            u = _unit(self.direction, "motion direction")
-            return SINUSOID, np.array([*u, 0.0, self.amplitude, self.frequency, self.phase,
-                                       self.start])
+            row[:7] = *_unit(self.direction, "motion direction"), 0.0, self.amplitude, \
+                self.frequency, self.phase
+            return SINUSOID, row
         if self.kind == "servo":
             if self.force < 0 or self.gain < 0 or not self.max_speed > 0:
                 raise ValueError("servo motion needs force >= 0 [N], gain >= 0 [m/(N s)] and "
                                  "max_speed > 0 [m/s]")
-            u = _unit(self.direction, "motion direction")
-            return SERVO, np.array([*u, self.force, self.gain, self.max_speed, 0.0,
-                                    self.start])
+            row[:6] = *_unit(self.direction, "motion direction"), self.force, self.gain, \
+                self.max_speed
+            return SERVO, row
+        if self.kind == "piston":
+            numbers = (self.force, self.force_amplitude, self.frequency, self.phase)
+            if not (self.mass > 0 and math.isfinite(self.mass)) or self.force_amplitude < 0 \
+                    or self.frequency < 0 or not all(math.isfinite(x) for x in numbers):
+                raise ValueError("piston motion needs mass > 0 [kg], a finite force [N], "
+                                 "force_amplitude >= 0 [N] and frequency >= 0 [Hz]")
+            row[:7] = *_unit(self.direction, "motion direction"), *numbers
+            row[8] = self.mass
+            return PISTON, row
         raise ValueError(f"unknown wall motion {self.kind!r}; choose fixed, velocity, "
-                         "sinusoid, servo")
+                         "sinusoid, servo, piston")
 
     @classmethod
     def from_row(cls, kind, row):
-        """The Motion of kernel row ``row`` (8,) of kind id ``kind`` (the inverse of row)."""
+        """The Motion of kernel row ``row`` (MOTION_WIDTH,) of kind id ``kind`` (the
+        inverse of row)."""
         u, start = tuple(float(x) for x in row[:3]), float(row[7])
         if kind == VELOCITY:
             return cls("velocity", velocity=tuple(float(x * row[3]) for x in row[:3]),
@@ -100,6 +134,10 @@ class Motion:
         if kind == SERVO:
             return cls("servo", direction=u, force=float(row[3]), gain=float(row[4]),
                        max_speed=float(row[5]), start=start)
+        if kind == PISTON:
+            return cls("piston", direction=u, force=float(row[3]),
+                       force_amplitude=float(row[4]), frequency=float(row[5]),
+                       phase=float(row[6]), mass=float(row[8]), start=start)
         return cls()
 
 
@@ -251,7 +289,7 @@ class Walls:
         self.kind = np.zeros(w, np.int64)
         self.geometry = np.zeros((max(w, 1), GEOMETRY_WIDTH))[:w]
         self.motion_kind = np.zeros(w, np.int64)
-        self.motion = np.zeros((w, 8))
+        self.motion = np.zeros((w, MOTION_WIDTH))
         self.material = np.zeros(w, np.int32)
         for k, wall in enumerate(self.walls):
             self.kind[k], row = wall.row()
@@ -406,7 +444,7 @@ def wall_distance(kind, geometry, offset, w, x, y, z):
 
 @kernel
 def walls_advance(motion_kind, motion, base, offset, velocity, force, time, dt):
-    """Move prescribed and servo walls from ``time`` to ``time + dt`` [s]; ``force``
+    """Move prescribed, servo and piston walls from ``time`` to ``time + dt`` [s]; ``force``
     (W, 3) [N] is the force of the grains on each wall at the last evaluation."""
     t = time + dt
     for w in range(motion_kind.size):
@@ -426,6 +464,18 @@ def walls_advance(motion_kind, motion, base, offset, velocity, force, time, dt):
             push = -(force[w, 0] * motion[w, 0] + force[w, 1] * motion[w, 1]
                      + force[w, 2] * motion[w, 2])
             speed = min(max(motion[w, 4] * (motion[w, 3] - push), -motion[w, 5]), motion[w, 5])
+            for d in range(3):
+                velocity[w, d] = motion[w, d] * speed
+                offset[w, d] += velocity[w, d] * dt
+        elif kind == PISTON and t > motion[w, 7]:
+            applied = motion[w, 3] + motion[w, 4] * math.sin(
+                2.0 * math.pi * motion[w, 5] * (time - motion[w, 7]) + motion[w, 6])
+            push = 0.0
+            speed = 0.0
+            for d in range(3):
+                push -= force[w, d] * motion[w, d]
+                speed += velocity[w, d] * motion[w, d]
+            speed += dt * (applied - push) / motion[w, 8]
             for d in range(3):
                 velocity[w, d] = motion[w, d] * speed
                 offset[w, d] += velocity[w, d] * dt

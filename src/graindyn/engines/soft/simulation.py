@@ -477,6 +477,9 @@ class Simulation:
 
         self.pairs = lists("pairs", Pairs)
         self.wall_pairs = lists("wall_contacts", WallPairs)
+        motion = np.asarray(arrays["walls/motion"])
+        if motion.ndim == 2 and motion.shape[1] == 8:   # written before the piston's mass
+            arrays = {**arrays, "walls/motion": np.pad(motion, ((0, 0), (0, 1)))}
         for k in ("offset", "base", "velocity", "force", "motion_kind", "motion"):
             put(getattr(self.walls, k), f"walls/{k}")
         put(self.reference_positions, "loop/reference_positions")
