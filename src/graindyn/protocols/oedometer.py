@@ -2,9 +2,15 @@
 
 Phases: "settle" (the deposition protocol: grains inserted at random in the container,
 settled under gravity) and "load": the piston, a plane above the sample, is put just
-over the highest grain and becomes a stress-controlled wall (core.walls, servo motion)
-with target force p A for the levels p = p0, factor p0, ... up to p_max, and back down
-when ``unload`` is set.  At each level the sample relaxes until it is at rest:
+over the highest grain and becomes a stress-controlled wall with target force p A for
+the levels p = p0, factor p0, ... up to p_max, and back down when ``unload`` is set.
+``loading`` chooses how the piston is driven: "servo" (core.walls, servo motion: a
+velocity servo without inertia, below) or "piston" (core.walls, piston motion: a rigid
+plate of mass ``piston_mass`` driven by the constant force p A and by the grains, as
+Oquendo et al. write that "the top wall falls down with the initial pressure p0"; the
+default mass is that of the sample, so that the plate rings on the sample near the
+sample's own lowest mode instead of far above it, light, or far below, heavy and slow to
+settle).  At each level the sample relaxes until it is at rest:
 
     |F_piston - p A| <= force_tolerance p A,
     |F_bottom + F_side friction - F_piston - weight| <= force_tolerance p A   and
@@ -83,6 +89,11 @@ class OedometerSettings(SettleSettings):
                        le=10)
     unload: bool = _f(False, "after p_max, unload by the same factor back to p0")
     piston_material: str | None = _f(None, "piston material; default: walls.material")
+    loading: Literal["servo", "piston"] = _f(
+        "servo", "how the piston is driven: servo (a velocity servo on its force error) or "
+        "piston (a plate of piston_mass pushed by p A and by the grains)")
+    piston_mass: Float | None = _f(None, "mass of the piston [kg] (loading = piston); "
+                                   "default: the mass of the grains; > 0", gt=0)
     servo_time: Float = _f(1e-3, "servo time constant tau [s]: the piston closes its force "
                            "error no faster than exp(-t/tau); (0, 10]", gt=0, le=10)
     max_speed: Float = _f(0.01, "largest piston speed [m/s]; (0, 10]", gt=0, le=10)
@@ -229,9 +240,10 @@ class Load(Phase):
         interrupted = []
 
         def check(sim):
-            """At every pause (at least every servo_time/4): tune the gain, keep the
-            peak, end a level at rest; stop for the runner or at the level's end."""
-            self._tune(sim, k, state)
+            """At every pause (at least every servo_time/4): tune the servo's gain, keep
+            the peak, end a level at rest; stop for the runner or at the level's end."""
+            if p.loading == "servo":
+                self._tune(sim, k, state)
             state["peak"] = max(state.get("peak", 0.0), sim.walls.normal_force(k))
             if self._at_rest(sim, k):
                 self._finish_level(sim, state, k, True)
@@ -269,16 +281,23 @@ class Load(Phase):
                  f"{len(state['rows'])} levels done")
 
     def _arm(self, sim, state, k):
-        """Start the current level: the servo's target force, its gain no higher than
-        v_max/(BAND F_target) (the whole bound at the first level, when the piston
-        becomes a servo moving down at up to v_max) and the level's deadline."""
+        """Start the current level: the piston's force p A (loading = piston), or the
+        servo's target force and its gain no higher than v_max/(BAND F_target) (the
+        whole bound at the first level, when the piston becomes a servo moving down at
+        up to v_max), and the level's deadline."""
         p = self.p
         target = self.levels[state["level"]][0] * self.vessel.cross_section
+        state["level_end"] = sim.time + p.level_max_time
+        if p.loading == "piston":
+            mass = p.piston_mass if p.piston_mass is not None \
+                else float(np.sum(sim.state.masses))
+            sim.set_motion(k, Motion("piston", direction=(0.0, 0.0, -1.0), force=target,
+                                     mass=mass))
+            return
         bound = p.max_speed / (BAND * target)
         gain = min(sim.walls.motion_of(k).gain, bound) if state["level"] else bound
         sim.set_servo(k, force=target, gain=gain, max_speed=p.max_speed,
                       direction=(0.0, 0.0, -1.0))
-        state["level_end"] = sim.time + p.level_max_time
 
     def _tune(self, sim, k, state):
         """Servo gain g = min(v_max/(BAND F_target), 1/(tau K)), K the sample's stiffness seen
