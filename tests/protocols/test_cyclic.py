@@ -1,0 +1,87 @@
+"""Cyclic loading through a rigid plate (protocols/cyclic.py, Karrech et al.): the plate
+carries the haversine stress it is given, the bed compacts cycle after cycle, and every
+grain's residual displacement is written at each cycle end."""
+import copy
+import math
+
+import numpy as np
+import pytest
+
+from graindyn.config import ConfigError, validate
+from graindyn.output.rundir import Series
+from graindyn.protocols.cyclic import load_residuals
+from graindyn.runner import execute
+
+RADIUS = 2.5e-3
+SMALL = {
+    "run": {"name": "small_cyclic", "seed": 3},
+    "grains": {"count": 100, "material": "sand",
+               "diameter": {"min": 0.85e-3, "max": 1.15e-3}},
+    "materials": [{"name": "sand", "youngs_modulus": 1e8, "poisson_ratio": 0.25,
+                   "restitution": 0.5, "friction_sliding": 0.4, "tangential_damping": 1.0}],
+    "contact": {"normal": "hertz", "damping": "tsuji", "tangential": "mindlin"},
+    "walls": {"material": "sand",
+              "container": {"kind": "cylinder", "radius": RADIUS, "height": 12e-3}},
+    "protocol": {"kind": "cyclic", "packing_fraction": 0.05, "threshold": 1e-5,
+                 "max_time": 0.3, "stress_amplitude": 2e3, "frequency": 50.0, "cycles": 4},
+    "output": {"series_every": 2e-4, "figures": True},
+}
+
+
+@pytest.fixture(scope="module")
+def cyclic(tmp_path_factory):
+    out = tmp_path_factory.mktemp("cyclic") / "run"
+    return out, execute(validate(SMALL), out, show_progress=False, echo=lambda *a: None)
+
+
+def test_the_plate_carries_the_haversine_it_is_given(cyclic):
+    """Each cycle of T = 1/f ends at t0 + n T; the plate stress peaks at mid-cycle at the
+    static stress plus Delta sigma plus the plate's weight over the area (the load is
+    slow against the bed's response, so the bed pushes back what the plate is pushed
+    with), and it is back near its least at the cycle's end."""
+    out, results = cyclic
+    rows = results["cycles"]
+    assert [r["cycle"] for r in rows] == [1, 2, 3, 4]
+    period = 1 / 50.0
+    t0 = rows[0]["time_s"] - period
+    for r in rows:
+        assert r["time_s"] == pytest.approx(t0 + r["cycle"] * period, abs=1e-5)
+    series = Series(out / "series.csv").read()
+    t = series["time [s]"]
+    area = math.pi * RADIUS**2
+    stress = series["force_plate [N]"] / area
+    weight = results["deposition"]["total_weight_N"] / area      # plate of the sample's mass
+    for n in range(4):
+        cycle = (t > t0 + n * period) & (t <= t0 + (n + 1) * period)
+        peak = np.argmax(stress[cycle])
+        assert stress[cycle][peak] == pytest.approx(2e3 + weight, rel=0.05)
+        assert t[cycle][peak] - t0 - n * period == pytest.approx(period / 2, abs=period / 10)
+        assert rows[n]["sigma_plate_Pa"] < 0.1 * 2e3
+
+
+def test_the_bed_compacts_and_residuals_are_written(cyclic):
+    out, results = cyclic
+    settlement = [r["settlement_m"] for r in results["cycles"]]
+    assert 0 < settlement[0] < settlement[-1] < 1e-3
+    residual = load_residuals(out)
+    assert residual.shape == (4, 100, 3)
+    assert np.mean(residual[-1, :, 2]) < 0                        # the grains went down
+    assert np.mean(np.linalg.norm(residual[-1], axis=1)) == pytest.approx(
+        results["cycles"][-1]["mean_residual_m"])
+    assert (out / "cycles.csv").read_text().count("\n") == 5
+    assert (out / "figures" / "cyclic.png").stat().st_size > 10_000
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda c: c["protocol"].update(plate_material="brass"), "plate_material"),
+    (lambda c: c["protocol"].update(stress_amplitude=0.0), "stress_amplitude"),
+    (lambda c: c["protocol"].update(plate_mass=-1.0), "plate_mass"),
+    (lambda c: c["walls"].update(container={"kind": "box", "lo": [0, 0, 0],
+                                            "hi": [5e-3, 5e-3, 1e-2],
+                                            "open_top": False}), "open-top box"),
+])
+def test_bad_cyclic_configs_are_refused(change, message):
+    data = copy.deepcopy(SMALL)
+    change(data)
+    with pytest.raises(ConfigError, match=message):
+        validate(data)
