@@ -105,6 +105,38 @@ class Phase:
         return {}
 
 
+class ProtocolPhase(Phase):
+    """A phase of a protocol's own: it reads the protocol (its log, folder and title),
+    its settings ``p`` and its ``vessel``."""
+
+    def __init__(self, protocol):
+        self.protocol = protocol
+        self.p = protocol.p
+        self.vessel = protocol.vessel
+
+
+def write_rows(path, rows, keys=None):
+    """Write ``rows`` (dicts) as CSV to ``path``, the columns ``keys`` (default: those of
+    the first row); returns the path."""
+    keys = list(rows[0]) if keys is None and rows else list(keys or [])
+    path.write_text("\n".join([",".join(keys)] + [",".join(str(r[k]) for k in keys)
+                                                  for r in rows]) + "\n")
+    return path
+
+
+def lower_onto_grains(engine, wall):
+    """Put ``wall``, a plane facing down the vertical axis (z in 3D, y in 2D), at
+    1e-3 of the smallest radius above the highest grain (a piston or plate put on the
+    sample)."""
+    s = engine.state
+    up = s.dim - 1
+    k = engine.walls.index(wall)
+    offset = engine.walls.offset[k].copy()
+    offset[up] = float(np.max(s.positions[:, up] + s.radii)) \
+        + 1e-3 * float(s.radii.min()) - engine.walls.geometry[k, up]
+    engine.place_wall(k, offset)
+
+
 def run_until(engine, state, key, duration, **run):
     """Run ``engine`` until the deadline ``state[key]`` [s] of simulated time, set to
     now + ``duration`` the first time (so a resumed phase keeps its deadline)."""

@@ -35,7 +35,7 @@ from ..analysis.packing import coordination_number
 from ..analysis.energy import energy_budget
 from ..core.walls import Motion, Plane
 from ..schema import Float, Int, described as _f
-from .base import Phase, Protocol, register, run_until
+from .base import Protocol, ProtocolPhase, lower_onto_grains, register, run_until, write_rows
 from .deposition import save_figure
 from .phases import SettleSettings, preparation
 
@@ -117,12 +117,7 @@ class Cyclic(Protocol):
 
     def tables(self, rundir, results):
         """cycles.csv: one row per cycle."""
-        rows = results["cycles"]
-        keys = list(rows[0]) if rows else []
-        path = rundir.path / "cycles.csv"
-        path.write_text("\n".join([",".join(keys)] + [",".join(str(r[k]) for k in keys)
-                                                      for r in rows]) + "\n")
-        return [path]
+        return [write_rows(rundir.path / "cycles.csv", results["cycles"])]
 
     def figures(self, rundir, series, results):
         """Settlement and coordination against the cycle number, and the plate stress
@@ -146,15 +141,10 @@ class Cyclic(Protocol):
         return [save_figure(fig, rundir, "cyclic.png")]
 
 
-class Cycles(Phase):
+class Cycles(ProtocolPhase):
     """The plate put on the bed, then ``cycles`` load cycles (module docstring)."""
 
     name = "cycles"
-
-    def __init__(self, protocol):
-        self.protocol = protocol
-        self.p = protocol.p
-        self.vessel = protocol.vessel
 
     def duration(self):
         return self.p.cycles / self.p.frequency
@@ -165,10 +155,7 @@ class Cycles(Phase):
         up = v.dim - 1                                  # the vertical axis
         if "start_s" not in state:
             s = engine.state
-            top = float(np.max(s.positions[:, up] + s.radii))
-            offset = engine.walls.offset[k].copy()
-            offset[up] = top + 1e-3 * float(s.radii.min()) - engine.walls.geometry[k, up]
-            engine.place_wall(k, offset)
+            lower_onto_grains(engine, k)
             mass = p.plate_mass if p.plate_mass is not None else float(np.sum(s.masses))
             weight = mass * float(np.linalg.norm(engine.gravity))
             half = 0.5 * p.stress_amplitude * v.cross_section

@@ -54,7 +54,7 @@ from ..core.triggers import Periodic
 from ..core.walls import Motion, Plane
 from ..core.engine import OverlapError
 from ..schema import Float, described as _f
-from .base import Phase, Protocol, register
+from .base import Protocol, ProtocolPhase, lower_onto_grains, register, write_rows
 from .deposition import save_figure
 from .phases import SettleSettings, preparation
 
@@ -166,12 +166,7 @@ class Oedometer(Protocol):
 
     def tables(self, rundir, results):
         """ladder.csv: one row per level."""
-        rows = results["ladder"]
-        keys = list(rows[0]) if rows else []
-        lines = [",".join(keys)] + [",".join(str(r[k]) for k in keys) for r in rows]
-        path = rundir.path / "ladder.csv"
-        path.write_text("\n".join(lines) + "\n")
-        return [path]
+        return [write_rows(rundir.path / "ladder.csv", results["ladder"])]
 
     def figures(self, rundir, series, results):
         """e against p on linear and log axes with the fitted curves (as Oquendo Fig.
@@ -209,16 +204,14 @@ class Oedometer(Protocol):
         return [save_figure(fig, rundir, "oedometer.png")]
 
 
-class Load(Phase):
+class Load(ProtocolPhase):
     """The load phase: the piston put just above the highest grain, then driven as a
     stress-controlled wall up and down the protocol's ladder (module docstring)."""
 
     name = "load"
 
     def __init__(self, protocol):
-        self.protocol = protocol
-        self.p = protocol.p
-        self.vessel = protocol.vessel
+        super().__init__(protocol)
         self.levels = ladder(self.p.p0, self.p.p_max, self.p.factor, self.p.unload)
 
     def duration(self):
@@ -231,10 +224,7 @@ class Load(Phase):
         p = self.p
         k = sim.walls.index(PISTON)
         if "level" not in state:
-            top = float(np.max(sim.state.positions[:, 2] + sim.state.radii))
-            offset = sim.walls.offset[k].copy()
-            offset[2] = top + 1e-3 * float(sim.state.radii.min()) - sim.walls.geometry[k, 2]
-            sim.place_wall(k, offset)
+            lower_onto_grains(sim, k)
             state.update(level=0, rows=[])
             self._arm(sim, state, k)
         interrupted = []

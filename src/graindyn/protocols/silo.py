@@ -43,7 +43,7 @@ from ..core.walls import Motion, Segment
 from ..output.network import draw_network
 from ..output.vtk import write_grains
 from ..schema import Float, Int, described as _f
-from .base import Phase, Protocol, register, run_until
+from .base import Protocol, ProtocolPhase, register, run_until, write_rows
 from .deposition import save_figure
 from .phases import SettleSettings, preparation
 
@@ -158,10 +158,7 @@ class Silo(Protocol):
         rows = results.get("avalanches", [])
         keys = ["number", "first", "size", "start_s", "end_s", "duration_s", "flow_rate_per_s",
                 "mass_flow_kg_per_s", "arch_size"]
-        lines = [",".join(keys)] + [",".join(str(r[k]) for k in keys) for r in rows]
-        path = rundir.path / "avalanches.csv"
-        path.write_text("\n".join(lines) + "\n")
-        return [path]
+        return [write_rows(rundir.path / "avalanches.csv", rows, keys)]
 
     def figures(self, rundir, series, results):
         """The histogram n(s) (Pérez Fig. 4), the normalized cumulative w(s) (Eq. 39,
@@ -191,15 +188,10 @@ class Silo(Protocol):
         return [save_figure(fig, rundir, "silo.png")]
 
 
-class Discharge(Phase):
+class Discharge(ProtocolPhase):
     """The discharge with re-injection, jam detection and taps (module docstring)."""
 
     name = "discharge"
-
-    def __init__(self, protocol):
-        self.protocol = protocol
-        self.p = protocol.p
-        self.vessel = protocol.vessel
 
     def duration(self):
         return self.p.discharge_time
