@@ -208,17 +208,26 @@ def _correct_block(lo, hi, integrator, stage, dt, started, dim, gravity, own, st
                    masses, inertias, positions, reference_positions, velocities,
                    angular_velocities, orientations, accelerations, angular_accelerations,
                    fixed, periodic_flag, periodic_length, history, drift_next):
-    """_correct_rows, compiled once as a serial function.  Velocity Verlet in 3D (the
-    default scheme) gets its own copy for the steps whose pass does the next drift
-    (all but those that end a chunk or are checked), in which the integrator, its
-    single stage, the dimension and the drift are constants: the dispatch on them
-    folds away (about 40 us of the 330 us of this pass on a 10 000-grain bed, one
-    thread), and so does the bound on the drift (_correct_rows)."""
-    if integrator == VELOCITY_VERLET and dim == 3 and drift_next:
+    """_correct_rows, compiled once as a serial function.  Velocity Verlet (the
+    default scheme) gets its own copy in 3D and in 2D for the steps whose pass does the
+    next drift (all but those that end a chunk or are checked), in which the
+    integrator, its single stage, the dimension and the drift are constants: the
+    dispatch on them folds away (about 40 us of the 330 us of this pass on a
+    10 000-grain bed, one thread), and so does the bound on the drift
+    (_correct_rows)."""
+    if integrator == VELOCITY_VERLET and drift_next:
         # constants typed as the generic call's (no second compile of _correct_rows):
         # LLVM folds them after inlining
+        if dim == 3:
+            return _correct_rows(lo, hi, np.int64(VELOCITY_VERLET), np.int64(0), dt, started,
+                                 np.int64(3), gravity, own, start, reverse_start,
+                                 reverse_pairs, pair_force, pair_torque_j, forces, torques,
+                                 masses, inertias, positions, reference_positions,
+                                 velocities, angular_velocities, orientations, accelerations,
+                                 angular_accelerations, fixed, periodic_flag,
+                                 periodic_length, history, np.bool_(True))
         return _correct_rows(lo, hi, np.int64(VELOCITY_VERLET), np.int64(0), dt, started,
-                             np.int64(3), gravity, own, start, reverse_start, reverse_pairs,
+                             np.int64(2), gravity, own, start, reverse_start, reverse_pairs,
                              pair_force, pair_torque_j, forces, torques, masses, inertias,
                              positions, reference_positions, velocities, angular_velocities,
                              orientations, accelerations, angular_accelerations, fixed,
