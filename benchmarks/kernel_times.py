@@ -25,7 +25,7 @@ def main(argv):
     reps = int(argv[8]) if len(argv) == 9 else 500
     numba.set_num_threads(int(threads))
     from graindyn.engines.soft import loop
-    from graindyn.engines.soft.contacts import PAIRS, WALLS, contact_forces
+    from graindyn.engines.soft.contacts import PAIRS, PLANAR, WALLS, contact_forces
     from graindyn.engines.soft.integrators import before_force
 
     sim = bed(state_file, cyl, size, young, rest, dt, skin)
@@ -52,6 +52,8 @@ def main(argv):
     def t_part(reps, part, model, params, law, clock, g, w, p, pairs, counters, history,
                scratch):
         s = 0.0
+        if counters[loop.DIM] == 2:
+            part |= PLANAR
         for _ in range(reps):
             s += contact_forces(model, params, law, g.positions, g.velocities,
                                 g.angular_velocities, g.radii, g.masses, g.materials, g.fixed,
@@ -69,7 +71,7 @@ def main(argv):
         for _ in range(reps):
             s += loop.evaluate_forces(model, params, law, g, pairs, w, p,
                                       clock[loop.GX:loop.GZ + 1], clock[loop.DT],
-                                      scratch.size)[2]
+                                      scratch.size, counters[loop.DIM])[2]
         return s
 
     @numba.njit(_nrt=False)

@@ -21,7 +21,7 @@ velocity of i at that point is v_i - v_j - (R'_i w_i + R'_j w_j) x n.
 """
 import numpy as np
 
-from ..._jit import block, parallel, prange, scalar
+from ..._jit import block, block_body, parallel, prange, scalar
 from ...core.neighbors import min_image
 from ...core.walls import wall_distance
 from ...physics.contact import contact_release
@@ -181,12 +181,15 @@ def _stage(work, c, params, a, b, history, k, overlap, lever_i, lever_j, r_eff, 
 
 @scalar
 def _fill(count, work, slots, params, velocities, angular_velocities, radii, masses,
-          materials, fixed, history):
+          materials, fixed, history, planar):
     """Complete the pairs 0..count-1 gathered in ``work`` (their separations in rows
     SX..SZ, their pair, first and second grain in ``slots``) with what the law loop
     computes their geometry and law from: radii, masses, fixed flags, v_i - v_j, w_i,
     w_j, pair-table row and history.  The history is copied in a loop of its own, and
-    the slot rows are read as 1-D views (7.0 -> 6.2 ns per contact, 280-grain bed)."""
+    the slot rows are read as 1-D views (7.0 -> 6.2 ns per contact, 280-grain bed).
+    ``planar`` (2D, a constant in the caller's copy): the z velocities and the x and y
+    spins are zero, and so are their rows, which nothing else writes with another
+    value: they are not written again."""
     pairs = slots[0]
     first = slots[1]
     second = slots[2]
@@ -201,13 +204,14 @@ def _fill(count, work, slots, params, velocities, angular_velocities, radii, mas
         work[FIXED_J * STRIDE + c] = fixed[j]
         work[DVX * STRIDE + c] = velocities[i, 0] - velocities[j, 0]
         work[(DVX + 1) * STRIDE + c] = velocities[i, 1] - velocities[j, 1]
-        work[(DVX + 2) * STRIDE + c] = velocities[i, 2] - velocities[j, 2]
-        work[W_I * STRIDE + c] = angular_velocities[i, 0]
-        work[(W_I + 1) * STRIDE + c] = angular_velocities[i, 1]
         work[(W_I + 2) * STRIDE + c] = angular_velocities[i, 2]
-        work[W_J * STRIDE + c] = angular_velocities[j, 0]
-        work[(W_J + 1) * STRIDE + c] = angular_velocities[j, 1]
         work[(W_J + 2) * STRIDE + c] = angular_velocities[j, 2]
+        if not planar:
+            work[(DVX + 2) * STRIDE + c] = velocities[i, 2] - velocities[j, 2]
+            work[W_I * STRIDE + c] = angular_velocities[i, 0]
+            work[(W_I + 1) * STRIDE + c] = angular_velocities[i, 1]
+            work[W_J * STRIDE + c] = angular_velocities[j, 0]
+            work[(W_J + 1) * STRIDE + c] = angular_velocities[j, 1]
     if params.shape[0] > 1:
         for c in range(count):
             a = materials[first[c]]
@@ -230,14 +234,16 @@ def whole_lanes(count):
 
 @scalar
 def _flush(law, work, count, slots, hi, params, velocities, angular_velocities, radii, masses,
-           materials, fixed, history, pair_force, own, pair_torque_j, dt):
+           materials, fixed, history, pair_force, own, pair_torque_j, dt, planar):
     """Complete the ``count`` contacts gathered in ``work`` (_fill), evaluate their law
     (law_loop.py) and scatter them back in gathering order: forces, histories, and the
     sums on each grain of the block (grains below ``hi``); the torque on a second grain
-    beyond the block is stored for the gather.  Returns the normal and tangential
-    energy dissipated [J] and their largest overlap / smaller radius."""
+    beyond the block is stored for the gather.  ``planar`` (2D): only the force in the
+    plane and the torque about z are scattered, the other components being zero (the
+    force and torque rows of a pair keep the zeros they hold).  Returns the normal and
+    tangential energy dissipated [J] and their largest overlap / smaller radius."""
     _fill(count, work, slots, params, velocities, angular_velocities, radii, masses,
-          materials, fixed, history)
+          materials, fixed, history, planar)
     call_law(law, work, whole_lanes(count), dt, np.int64(1))
     lost_n = 0.0
     lost_t = 0.0
@@ -249,13 +255,19 @@ def _flush(law, work, count, slots, hi, params, velocities, angular_velocities, 
         inside = j < hi
         worst = max(worst, work[RATIO * STRIDE + s])
         for d in range(3):
+            if planar and d == 2:
+                continue
             f = work[(OUTPUT + d) * STRIDE + s]
-            torque_j = work[(OUTPUT + 6 + d) * STRIDE + s]
             pair_force[k, d] = f
             own[i, d] += f
-            own[i, 3 + d] += work[(OUTPUT + 3 + d) * STRIDE + s]
             if inside:
                 own[j, d] -= f
+        for d in range(3):
+            if planar and d < 2:
+                continue
+            torque_j = work[(OUTPUT + 6 + d) * STRIDE + s]
+            own[i, 3 + d] += work[(OUTPUT + 3 + d) * STRIDE + s]
+            if inside:
                 own[j, 3 + d] += torque_j
             else:
                 pair_torque_j[k, d] = torque_j
@@ -270,10 +282,29 @@ def _flush(law, work, count, slots, hi, params, velocities, angular_velocities, 
 def _pair_block(lo, hi, law, work, slots, dirty, model, params, positions, velocities,
                 angular_velocities, radii, masses, materials, fixed, periodic_flag,
                 periodic_length, start, partners, owner, history, pair_force, own,
-                pair_torque_j, max_overlap, dt):
-    """The pairs listed by grains lo..hi-1, compiled once as a serial function: the
-    touching ones gathered CAP at a time into ``work`` and evaluated by the law loop
-    (_flush); returns the energies.  Same pair forces as pair_row, to the bit.
+                pair_torque_j, max_overlap, dt, planar):
+    """_pair_rows compiled once as a serial function, with a copy of its own for 2D
+    (``planar`` a constant there: the z components and the x and y spins fold away,
+    about a tenth of the pair forces of the 2000-disk silo bed)."""
+    if planar:
+        return _pair_rows(lo, hi, law, work, slots, dirty, model, params, positions,
+                          velocities, angular_velocities, radii, masses, materials, fixed,
+                          periodic_flag, periodic_length, start, partners, owner, history,
+                          pair_force, own, pair_torque_j, max_overlap, dt, np.bool_(True))
+    return _pair_rows(lo, hi, law, work, slots, dirty, model, params, positions, velocities,
+                      angular_velocities, radii, masses, materials, fixed, periodic_flag,
+                      periodic_length, start, partners, owner, history, pair_force, own,
+                      pair_torque_j, max_overlap, dt, np.bool_(False))
+
+
+@block_body
+def _pair_rows(lo, hi, law, work, slots, dirty, model, params, positions, velocities,
+               angular_velocities, radii, masses, materials, fixed, periodic_flag,
+               periodic_length, start, partners, owner, history, pair_force, own,
+               pair_torque_j, max_overlap, dt, planar):
+    """The pairs listed by grains lo..hi-1: the touching ones gathered CAP at a time
+    into ``work`` and evaluated by the law loop (_flush); returns the energies.  Same
+    pair forces as pair_row, to the bit.
     The gathering has no branch on the contact test (every pair is written at the next
     free column, which advances only when it touches): that branch, taken or not at
     random, cost more than the rest of the gathering.  The pairs are walked in one loop
@@ -305,7 +336,8 @@ def _pair_block(lo, hi, law, work, slots, dirty, model, params, positions, veloc
         dirty[k] = touching
         work[SX * STRIDE + count] = dx
         work[SY * STRIDE + count] = dy
-        work[SZ * STRIDE + count] = dz
+        if not planar:
+            work[SZ * STRIDE + count] = dz
         slots[0, count] = k
         slots[1, count] = i
         slots[2, count] = j
@@ -313,7 +345,7 @@ def _pair_block(lo, hi, law, work, slots, dirty, model, params, positions, veloc
         if count == CAP:
             dn, dt_, deepest = _flush(law, work, count, slots, hi, params, velocities,
                                       angular_velocities, radii, masses, materials, fixed,
-                                      history, pair_force, own, pair_torque_j, dt)
+                                      history, pair_force, own, pair_torque_j, dt, planar)
             dissipated_n += dn
             dissipated_t += dt_
             worst = max(worst, deepest)
@@ -321,7 +353,7 @@ def _pair_block(lo, hi, law, work, slots, dirty, model, params, positions, veloc
     if count > 0:
         dn, dt_, deepest = _flush(law, work, count, slots, hi, params, velocities,
                                   angular_velocities, radii, masses, materials, fixed, history,
-                                  pair_force, own, pair_torque_j, dt)
+                                  pair_force, own, pair_torque_j, dt, planar)
         dissipated_n += dn
         dissipated_t += dt_
         worst = max(worst, deepest)
@@ -476,8 +508,9 @@ def _wall_block(lo, hi, law, work, slots, model, params, positions, velocities,
     return dissipated_n, dissipated_t
 
 
-PAIRS = 1     # contact_forces' parts: the listed pairs, the wall contacts, or both
-WALLS = 2
+PAIRS = 1     # contact_forces' parts: the listed pairs, the wall contacts, or both,
+WALLS = 2     # and PLANAR for a 2D system (its own copy of the pair loop, _pair_block)
+PLANAR = 4
 
 
 @block
@@ -496,7 +529,7 @@ def _contact_block(lo, hi, parts, law, work, slots, dirty, model, params, positi
             lo, hi, law, work, slots, dirty, model, params, positions, velocities,
             angular_velocities, radii, masses, materials, fixed, periodic_flag,
             periodic_length, start, partners, owner, history, pair_force, own,
-            pair_torque_j, max_overlap, dt)
+            pair_torque_j, max_overlap, dt, parts & PLANAR != 0)
     if parts & WALLS:
         wn, wt = _wall_block(lo, hi, law, work, slots, model, params, positions, velocities,
                              angular_velocities, radii, masses, materials, wall_kind,
@@ -530,7 +563,7 @@ def contact_forces(model, params, law, positions, velocities, angular_velocities
     max_overlap keeps the largest overlap / min(R_i, R_j) (R_i against a wall) since the
     loop last read and reset it (keep_worst: by block on the CPU, by grain on the GPU).
     parts : PAIRS | WALLS for a step; PAIRS alone (which zeroes own first) or WALLS alone
-    (which adds to own) time or test one kind.
+    (which adds to own) time or test one kind; | PLANAR in 2D.
     Returns the energies dissipated in the step, normal and tangential [J], summed over
     ``nblock`` fixed blocks of grains (block_count) in block order.
     """

@@ -33,7 +33,7 @@ from ..._jit import driver, kernel, scalar
 from ...core.neighbors import rebuild
 from ...core.triggers import ENERGY_RATIO_BELOW, MAX_SPEED_BELOW
 from ...core.walls import walls_advance
-from .contacts import PAIRS, WALLS, contact_forces, largest
+from .contacts import PAIRS, PLANAR, WALLS, contact_forces, largest
 from .integrators import STAGES, after_force, before_force
 
 # return codes of run_chunk (and relist: DONE, GROW, NAN)
@@ -61,13 +61,18 @@ def new_clock(dt, skin, gravity):
 
 
 @driver
-def evaluate_forces(model, params, law, grains, pairs, walls, periodic, gravity, dt, nblock):
-    """All contact forces and the total force on each wall; returns the (normal,
-    tangential) energy dissipated [J] and the power of the walls on the grains [W].
+def evaluate_forces(model, params, law, grains, pairs, walls, periodic, gravity, dt, nblock,
+                    dim):
+    """All contact forces and the total force on each wall in a ``dim``-D system;
+    returns the (normal, tangential) energy dissipated [J] and the power of the walls on
+    the grains [W].
     law: the batched law of the contacts (contacts.contact_forces);
     nblock: blocks of grains handed to threads (contacts.block_count).  The owners of
     the pairs and wall candidates are the lists' scratch_partners and scratch_wall_ids
     (neighbors.list_owners)."""
+    parts = PAIRS | WALLS
+    if dim == 2:
+        parts |= PLANAR
     dn, dt_ = contact_forces(model, params, law, grains.positions, grains.velocities,
                              grains.angular_velocities, grains.radii, grains.masses,
                              grains.materials, grains.fixed, periodic.flag, periodic.length,
@@ -76,8 +81,7 @@ def evaluate_forces(model, params, law, grains, pairs, walls, periodic, gravity,
                              walls.geometry, walls.offset, walls.velocity, walls.material,
                              walls.wall_start, walls.wall_ids, walls.scratch_wall_ids,
                              walls.wall_history, walls.contact_force, walls.contact_torque,
-                             pairs.own, grains.max_overlap, dt, nblock,
-                             np.int64(PAIRS | WALLS))
+                             pairs.own, grains.max_overlap, dt, nblock, np.int64(parts))
     force, contact_force, velocity, wall_ids = \
         walls.force, walls.contact_force, walls.velocity, walls.wall_ids
     force[:] = 0.0
@@ -257,7 +261,7 @@ def run_chunk(model, params, law, grains, pairs, walls, periodic, clock, counter
             if not _lists_ready(clock, counters, walls):
                 return RELIST, s
             evaluate_forces(model, params, law, grains, pairs, walls, periodic, gravity, 0.0,
-                            block_scratch.size)
+                            block_scratch.size, counters[DIM])
             # stage and drift_next as a plain int64 and bool: literals would compile the
             # pass a second time
             clock[MOVE] = _after(integrator, np.int64(0), 0.0, counters, gravity, grains,
@@ -284,7 +288,8 @@ def run_chunk(model, params, law, grains, pairs, walls, periodic, clock, counter
             # and wall work advance by that share, not by the whole step
             share = dt / STAGES[integrator]
             dn, dtan, power = evaluate_forces(model, params, law, grains, pairs, walls,
-                                              periodic, gravity, share, block_scratch.size)
+                                              periodic, gravity, share, block_scratch.size,
+                                              counters[DIM])
             clock[DISS_N] += dn
             clock[DISS_T] += dtan
             clock[WALL_WORK] += power * share
