@@ -1,0 +1,148 @@
+"""Relaxation by minimising Karrech's functional (Eq. 29): the nine-grain cell of Fig. 8,
+analytic equilibria of two bodies, and the compiled gradient against finite differences."""
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+import graindyn as gd
+from graindyn.core.walls import Cylinder, Plane, Walls
+from graindyn.engines.soft.relaxation import candidate_lists, functional, relax, youngs_table
+
+# Karrech Table 1: diorite grains; steel walls
+DIORITE = gd.Material("diorite", density=2710.0, youngs_modulus=46.9e9, poisson_ratio=0.25)
+STEEL = gd.Material("steel", density=7800.0, youngs_modulus=210e9, poisson_ratio=0.3)
+R = 3.2e-3                                       # [m]
+G = 9.81
+
+
+def _hertz_overlap(force, youngs_eff, r_eff):
+    """delta [m] with 4/3 E* sqrt(R*) delta^(3/2) = force [N] (Karrech Eq. 5)."""
+    return (force / (4.0 / 3.0 * youngs_eff * np.sqrt(r_eff))) ** (2.0 / 3.0)
+
+
+def _nine_grain_cell():
+    """Karrech's cell of nine grains (Fig. 8) in 3D: a body-centred cube of side 2.4 R
+    whose eight corner grains are the fixed frontier, loose enough that the central
+    grain rests on the four lower ones; the central grain, as an extrapolation might
+    leave it, sunk about 0.055 R into them and off centre.  (A flat 3 x 3 cell of
+    spheres would not hold its free centre in 3D: it could leave the plane.)"""
+    side = 2.4 * R
+    corners = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5)
+                        for z in (-0.5, 0.5)]) * side
+    centre = np.array([0.03 * R, -0.02 * R, -0.5 * side + 0.95 * R])
+    state = gd.State.create(np.vstack([corners, centre]), np.full(9, R), 2710.0)
+    state.fixed[:8] = 1
+    return state, side
+
+
+def test_nine_grain_cell_relaxes_to_its_equilibrium(one_thread):
+    state, side = _nine_grain_cell()
+    start = state.positions.copy()
+    result = relax(state, [DIORITE])
+    assert result.converged, result.message
+    # the paper's excessive penetration, relieved to the equilibrium level
+    assert result.overlaps_before.max > 0.05
+    youngs_eff = DIORITE.youngs_modulus / (2 * (1 - DIORITE.poisson_ratio ** 2))
+    weight = state.masses[8] * G
+
+    def imbalance(overlap):                  # 4 contacts carry the weight
+        distance = 2 * R - overlap
+        height = np.sqrt(distance**2 - side**2 / 2)
+        force = 4.0 / 3.0 * youngs_eff * np.sqrt(R / 2) * overlap**1.5
+        return 4 * force * height / distance - weight
+
+    expected = brentq(imbalance, 1e-14, 1e-5)
+    assert result.overlaps_after.count == 4
+    assert result.overlaps_after.max * R == pytest.approx(expected, rel=1e-3)
+    assert result.overlaps_after.p50 * R == pytest.approx(expected, rel=1e-3)
+    assert result.overlaps_after.largest < 1e-4 * result.overlaps_before.largest
+    assert np.abs(result.positions[8, :2]).max() < 1e-4 * R          # centred
+    assert result.functional_after < result.functional_before
+    trace = result.functional_trace
+    assert trace.size == result.iterations + 1 and trace[-1] == pytest.approx(
+        result.functional_after, rel=1e-9)
+    assert np.all(np.diff(trace) <= 1e-12 * np.abs(trace).max())     # decreasing
+    assert np.array_equal(result.positions[:8], start[:8])            # frontier fixed
+    assert np.array_equal(state.positions, start)                     # input untouched
+    # static equilibrium: net force on the free grain against its weight
+    assert result.residual_over_weight < 1e-4
+    assert result.residual_force < 1e-4 * result.largest_contact_force
+    assert 0 < result.iterations < 500
+
+
+def test_grain_on_a_fixed_grain_and_on_a_wall(one_thread):
+    # a grain of 2.5 mm resting on a fixed one of 3.2 mm: m g = 4/3 E* sqrt(R*) delta^1.5
+    small = 2.5e-3
+    state = gd.State.create([[0, 0, 0], [0, 0, R + small - 1e-4]], [R, small], 2710.0)
+    state.fixed[0] = 1
+    result = relax(state, [DIORITE])
+    youngs_eff = DIORITE.youngs_modulus / (2 * (1 - DIORITE.poisson_ratio ** 2))
+    expected = _hertz_overlap(state.masses[1] * G, youngs_eff, R * small / (R + small))
+    overlap = R + small - result.positions[1, 2]
+    assert result.converged and overlap == pytest.approx(expected, rel=1e-4)
+    assert np.array_equal(result.positions[1, :2], [0.0, 0.0])
+    # the same grain on a steel floor: R* = R, E* mixed with the wall's material
+    state = gd.State.create([[0, 0, small - 1e-4]], [small], 2710.0)
+    floor = Walls([Plane((0, 0, 0), (0, 0, 1), material=1)])
+    result = relax(state, [DIORITE, STEEL], walls=floor, update=True)
+    youngs_eff = 1 / ((1 - 0.25**2) / 46.9e9 + (1 - 0.3**2) / 210e9)
+    expected = _hertz_overlap(state.masses[0] * G, youngs_eff, small)
+    assert result.converged
+    assert small - result.positions[0, 2] == pytest.approx(expected, rel=1e-4)
+    assert np.array_equal(state.positions, result.positions)          # update=True
+    # an applied load of nine weights on top: ten weights on the contact
+    load = np.array([[0.0, 0.0, -9 * state.masses[0] * G]])
+    result = relax(state, [DIORITE, STEEL], walls=floor, loads=load)
+    expected = _hertz_overlap(10 * state.masses[0] * G, youngs_eff, small)
+    assert small - result.positions[0, 2] == pytest.approx(expected, rel=1e-4)
+
+
+def test_functional_gradient_against_finite_differences(one_thread):
+    rng = np.random.default_rng(7)
+    n = 12
+    positions = rng.uniform([-4e-3, -4e-3, 2.6e-3], [4e-3, 4e-3, 12e-3], (n, 3))
+    radii = rng.uniform(2.6e-3, 3.8e-3, n)
+    state = gd.State.create(positions, radii, 2710.0, materials=rng.integers(0, 2, n))
+    walls = Walls([Plane((0, 0, 0), (0, 0, 1), material=1),
+                   Cylinder((0, 0, 0), (0, 0, 1), 7e-3, material=1)])
+    youngs = youngs_table([DIORITE, STEEL])
+    lists = candidate_lists(state.positions, radii, 10e-3, walls)
+    loads = rng.normal(0, 0.1, (n, 3))
+    free = np.ones(n, np.int8)
+    gravity = np.array([0.0, 0.0, -G])
+    reference = state.positions + rng.normal(0, 1e-4, (n, 3))
+
+    def energy(at):
+        gradient = np.zeros((n, 3))
+        value = functional(at, reference, radii, state.masses, state.materials.astype(np.int64),
+                           youngs, gravity, loads, free, lists.start, lists.partners,
+                           walls.periodic_flag, walls.periodic_length, lists.wall_start,
+                           lists.wall_ids, walls.kind, walls.geometry, walls.offset,
+                           walls.material.astype(np.int64), gradient)
+        return value, gradient
+
+    value, gradient = energy(state.positions)
+    assert value > 0 and np.abs(gradient).max() > 1.0          # contacts are loaded
+    step = 1e-9
+    numeric = np.zeros((n, 3))
+    for b in range(n):
+        for d in range(3):
+            plus, minus = state.positions.copy(), state.positions.copy()
+            plus[b, d] += step
+            minus[b, d] -= step
+            numeric[b, d] = (energy(plus)[0] - energy(minus)[0]) / (2 * step)
+    assert np.allclose(gradient, numeric, rtol=1e-5, atol=1e-6 * np.abs(gradient).max())
+    free[:3] = 0
+    assert np.all(energy(state.positions)[1][:3] == 0.0)
+
+
+def test_lists_are_rebuilt_when_grains_move_far(one_thread):
+    """A column of grains overlapping by 0.3 R spreads over several skins."""
+    z = np.arange(6) * 1.7 * R + R
+    state = gd.State.create(np.stack([np.zeros(6), np.zeros(6), z], 1), np.full(6, R),
+                            2710.0)
+    floor = Walls([Plane((0, 0, 0), (0, 0, 1))])
+    result = relax(state, [DIORITE], walls=floor, skin=0.05 * R)
+    assert result.rebuilds > 1 and result.converged
+    assert result.overlaps_after.max < 1e-4
+    assert result.residual_over_weight < 1e-3
