@@ -118,3 +118,26 @@ def test_interrupted_cyclic_run_resumes_to_the_same_numbers(cyclic, tmp_path):
     resumed = json.loads((run / "results.json").read_text())
     assert resumed["cycles"] == json.loads((finished / "results.json").read_text())["cycles"]
     np.testing.assert_array_equal(load_residuals(run), load_residuals(finished))
+
+
+def test_the_procedure_extrapolates_relaxes_and_goes_on(tmp_path):
+    """extrapolation = shenton, k_i = 2, k = 3, h = 3, 8 cycles: cycles 1-5 computed,
+    cycles 6-8 extrapolated from the records of cycles 2-5, then relaxed: the
+    relaxation removes the overlaps the extrapolation made (to below 1e-3 of a radius)
+    and the residuals of the computed cycles and of the extrapolation's end are
+    written."""
+    from graindyn.protocols.cyclic import residual_cycles
+
+    data = copy.deepcopy(SMALL)
+    data["protocol"].update(cycles=8, extrapolation="shenton", initial_cycles=2,
+                            computed_cycles=3, extrapolated_cycles=3)
+    data["output"]["figures"] = False
+    out = tmp_path / "run"
+    results = execute(validate(data), out, show_progress=False, echo=lambda *a: None)
+    assert [r["cycle"] for r in results["cycles"]] == [1, 2, 3, 4, 5]
+    (jump,) = results["extrapolations"]
+    assert (jump["from_cycle"], jump["to_cycle"], jump["estimator"]) == (5, 8, "shenton")
+    assert jump["largest_overlap_after"] < 1e-3 < jump["largest_overlap_before"]
+    assert jump["functional_after_J"] < jump["functional_before_J"]
+    assert results["settlement_m"] == jump["settlement_m"]
+    assert residual_cycles(out) == [1, 2, 3, 4, 5, 8]

@@ -33,6 +33,7 @@ from typing import Literal
 import numpy as np
 from ..analysis.packing import coordination_number
 from ..analysis.energy import energy_budget
+from ..analysis.settlement import fit_residual
 from ..core.walls import Motion, Plane
 from ..schema import Float, Int, described as _f
 from .base import Protocol, ProtocolPhase, lower_onto_grains, register, run_until, write_rows
@@ -61,6 +62,18 @@ class CyclicSettings(SettleSettings):
     plate_material: str | None = _f(None, "plate material; default: walls.material")
     residuals: bool = _f(True, "write every grain's residual displacement at each cycle "
                          "end (residuals/cycle_NNNNNN.npy)")
+    extrapolation: Literal["none", "linear", "shenton"] = _f(
+        "none", "the sequential procedure (Karrech Fig. 10): after initial_cycles, rounds "
+        "of computed_cycles computed and extrapolated_cycles extrapolated by this "
+        "estimator (Eq. 16 or 17-21), then relaxed (Eq. 29); none: every cycle computed")
+    initial_cycles: Int = _f(10, "k_i: cycles computed before the first extrapolation; "
+                             ">= 1", ge=1)
+    computed_cycles: Int = _f(10, "k: cycles computed per round, the training data of its "
+                              "extrapolation; >= 2", ge=2)
+    extrapolated_cycles: Int = _f(10, "h: cycles extrapolated per round; >= 1", ge=1)
+    hold_frontier: bool = _f(False, "hold the grains touching the container's walls where "
+                             "the extrapolation put them while the others relax (Karrech "
+                             "Sec. 4); false: every grain relaxes, the walls confining them")
 
 
 @register
@@ -108,11 +121,14 @@ class Cyclic(Protocol):
                                         area=v.cross_section)]
 
     def results(self, engine, states):
-        out = {"deposition": states["settle"]["report"], "cycles": states["cycles"]["rows"],
+        cycles = states["cycles"]
+        out = {"deposition": states["settle"]["report"], "cycles": cycles["rows"],
+               "extrapolations": cycles.get("jumps", []),
                "signal": "sigma(t) = static + amplitude (1 - cos(2 pi f (t - t0))) / 2"}
-        rows = out["cycles"]
-        if rows:
-            out["settlement_m"] = rows[-1]["settlement_m"]
+        last = [(r["cycle"], r["settlement_m"]) for r in out["cycles"]] + [
+            (j["to_cycle"], j["settlement_m"]) for j in out["extrapolations"]]
+        if last:
+            out["settlement_m"] = max(last)[1]
         return out
 
     def tables(self, rundir, results):
@@ -168,15 +184,93 @@ class Cycles(ProtocolPhase):
                 start=engine.time))
             state.update(start_s=engine.time, plate_0=self._plate(engine, k), rows=[],
                          reference=s.positions.tolist())
-        while len(state["rows"]) < p.cycles:
+            state.update(cycle=0, jumps=[])
+        while state["cycle"] < p.cycles:
+            if p.extrapolation != "none" and len(state.get("round", ())) > p.computed_cycles:
+                self._jump(engine, state, k)
+                continue
             outcome = run_until(engine, state, "cycle_end", 1.0 / p.frequency, every=every,
                                 between=between)
             if outcome == "stopped":
                 return "stopped"
+            state["cycle"] += 1
             self._record(engine, state, k)
             del state["cycle_end"]
         engine.set_motion(k, Motion("fixed"))
         return "done"
+
+    def _jump(self, engine, state, k):
+        """The extrapolation of one round (Karrech Fig. 10): the estimator fitted to the
+        positions of the grains and the plate over the round's computed cycles
+        (analysis.settlement.fit_residual; times t_p = p T from the start of the
+        cycles, Shenton's law as the paper fits it, without an intercept: with one, a
+        window of a few cycles fits its noise and can extrapolate backwards), the
+        grains and the plate moved to where it puts them h cycles on, the grains then
+        relaxed from rest (Eq. 29, engine.relax: Hertz potentials, gravity, the walls and
+        the plate where they are; with hold_frontier the grains touching the container's
+        walls held, as Karrech et al. do), and a new round starting from there."""
+        p = self.p
+        if not hasattr(engine, "relax"):
+            raise ValueError("the cyclic procedure needs an engine that can relax its "
+                             "grains (the soft engine)")
+        records = state["round"]
+        period = 1.0 / p.frequency
+        first = state["cycle"] - p.computed_cycles
+        times = period * np.arange(first, state["cycle"] + 1)
+        ahead = min(p.extrapolated_cycles, p.cycles - state["cycle"])
+        end = period * (state["cycle"] + ahead)
+        law = p.extrapolation
+        grains = np.array([r["positions"] for r in records])
+        plates = np.array([r["plate"] for r in records])[:, None, :]
+        moved = {}
+        for name, values in (("grains", grains), ("plate", plates)):
+            trend = fit_residual(values - values[0], times, law)
+            moved[name] = values[0] + trend.extrapolate(end)
+        held = engine.state.fixed != 0
+        free = np.flatnonzero(~held)
+        engine.relocate(free, moved["grains"][free], np.zeros((free.size, 3)))
+        engine.place_wall(k, moved["plate"][0])
+        result = engine.relax(fixed=held | self._frontier(engine, k) if p.hold_frontier
+                              else held)
+        state["cycle"] += ahead
+        jump = {"from_cycle": state["cycle"] - ahead, "to_cycle": state["cycle"],
+                "estimator": law, "settlement_m": state["plate_0"] - self._plate(engine, k),
+                "largest_overlap_before": result.overlaps_before.max,
+                "largest_overlap_after": result.overlaps_after.max,
+                "relaxation_iterations": result.iterations, "relaxed": result.converged,
+                "functional_before_J": result.functional_before,
+                "functional_after_J": result.functional_after}
+        state["jumps"].append(jump)
+        self._save_residual(engine, state)
+        state["round"] = [self._round_record(engine, k)]
+        self.protocol.log(
+            f"cycles {jump['from_cycle']} -> {jump['to_cycle']} extrapolated ({law}): "
+            f"settlement {1e3 * jump['settlement_m']:.4g} mm; relaxed in "
+            f"{result.iterations} iterations, largest overlap / radius "
+            f"{jump['largest_overlap_before']:.3g} -> {jump['largest_overlap_after']:.3g}")
+
+    def _frontier(self, engine, k):
+        """(N,) bool: the grains touching a wall of the container (not the plate)."""
+        s, walls = engine.state, engine.walls
+        touching = np.zeros(s.n, bool)
+        for w in range(len(walls)):
+            if w != k:
+                distance, _ = walls.distances(s.positions, np.full(s.n, w))
+                touching |= distance < s.radii
+        return touching
+
+    def _round_record(self, engine, k):
+        """The positions of the grains and the plate's offset, for a round's fit."""
+        return {"positions": engine.state.positions.tolist(),
+                "plate": engine.walls.offset[k].tolist()}
+
+    def _save_residual(self, engine, state):
+        """residuals/cycle_NNNNNN.npy of the cycle that ends now."""
+        if self.p.residuals and self.protocol.folder is not None:
+            folder = pathlib.Path(self.protocol.folder) / "residuals"
+            folder.mkdir(exist_ok=True)
+            np.save(folder / f"cycle_{state['cycle']:06d}.npy",
+                    engine.state.positions - np.asarray(state["reference"]))
 
     def _plate(self, engine, k):
         """Height [m] of the plate."""
@@ -187,7 +281,7 @@ class Cycles(ProtocolPhase):
         """The row of the cycle that ends now, and its residual displacements."""
         v, s = self.vessel, engine.state
         walls = engine.walls
-        cycle = len(state["rows"]) + 1
+        cycle = state["cycle"]
         residual = s.positions - np.asarray(state["reference"])
         plate = self._plate(engine, k)
         height = plate - v.floor
@@ -208,18 +302,24 @@ class Cycles(ProtocolPhase):
                "mean_residual_m": float(np.mean(np.linalg.norm(residual, axis=1))),
                "kinetic_J": e["kinetic"] + e["rotational"]}
         state["rows"].append(row)
-        if self.p.residuals and self.protocol.folder is not None:
-            folder = pathlib.Path(self.protocol.folder) / "residuals"
-            folder.mkdir(exist_ok=True)
-            np.save(folder / f"cycle_{cycle:06d}.npy", residual)
+        self._save_residual(engine, state)
+        if self.p.extrapolation != "none" and cycle >= self.p.initial_cycles:
+            state.setdefault("round", []).append(self._round_record(engine, k))
         self.protocol.log(f"cycle {cycle}: settlement {1e3 * row['settlement_m']:.4g} mm, "
                           f"coordination {row['coordination']:.3f}")
 
 
-def load_residuals(run_dir):
-    """The residual displacements of a cyclic run, (cycles, N, 3) [m], cycle 1 first, from
-    its residuals/ folder."""
+def residual_cycles(run_dir):
+    """The cycles (ascending) whose residual displacements a cyclic run wrote: every
+    cycle, or with the procedure the computed ones and the ends of the extrapolations."""
     files = sorted((pathlib.Path(run_dir) / "residuals").glob("cycle_*.npy"))
     if not files:
         raise FileNotFoundError(f"{run_dir}: no residuals/cycle_*.npy")
-    return np.stack([np.load(f) for f in files])
+    return [int(f.stem.removeprefix("cycle_")) for f in files]
+
+
+def load_residuals(run_dir):
+    """The residual displacements of a cyclic run, (cycles, N, 3) [m], in the order of
+    residual_cycles, from its residuals/ folder."""
+    folder = pathlib.Path(run_dir) / "residuals"
+    return np.stack([np.load(folder / f"cycle_{c:06d}.npy") for c in residual_cycles(run_dir)])
