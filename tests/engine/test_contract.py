@@ -39,13 +39,38 @@ def soft(positions, radii=R, walls=(), gravity=DOWN, velocities=None, fixed=None
                          **options)
 
 
-ENGINES = {"soft": soft}
+def contact_dynamics(positions, radii=R, walls=(), gravity=DOWN, velocities=None, fixed=None,
+                     restitution=None, friction=0.0, **options):
+    """The contact dynamics engine (rigid grains, Moreau-Jean) of a system: Newton
+    restitution ``restitution`` (None: elastic, e = 1), Coulomb friction ``friction``
+    [-] (mu_s = mu_d), dt = 1e-4 s (1/100 of the free-fall time over R) and the
+    default theta; ``options`` go to ContactDynamics."""
+    from graindyn.engines.contact_dynamics.engine import ContactDynamics
+
+    positions = np.asarray(positions, dtype=float)
+    state = gd.State.create(positions, np.broadcast_to(radii, len(positions)), DENSITY,
+                            velocities=velocities)
+    if fixed is not None:
+        state.fixed[:] = fixed
+    material = gd.Material(restitution=restitution, friction_sliding=friction,
+                           friction_static=friction)
+    return ContactDynamics(state, [material], walls=list(walls), gravity=gravity,
+                           **{"dt": 1e-4, **options})
+
+
+ENGINES = {"soft": soft, "contact_dynamics": contact_dynamics}
+
+# (engine, test) -> why the test does not apply to that engine: skipped, with the reason
+NOT_OFFERED = {}
 
 
 @pytest.fixture(params=sorted(ENGINES))
 def build(request):
     """The factory of each engine: build(positions, radii=R, walls=(), gravity=DOWN,
     velocities=None, fixed=None, restitution=None, friction=0.0) -> Engine."""
+    reason = NOT_OFFERED.get((request.param, request.node.originalname))
+    if reason:
+        pytest.skip(reason)
     return ENGINES[request.param]
 
 

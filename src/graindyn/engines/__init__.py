@@ -65,3 +65,7 @@ def settings_classes():
 from .soft.settings import SOFT  # noqa: E402  (registers the soft engine)
 
 register(SOFT)
+
+from .contact_dynamics.settings import CONTACT_DYNAMICS  # noqa: E402
+
+register(CONTACT_DYNAMICS)

@@ -1,0 +1,503 @@
+"""ContactDynamics: rigid spheres (3D) or disks (2D) moved by the Moreau-Jean time
+stepping (stepping.py) with contact impulses from the NLGS (solver.py), behind the
+engine interface of core/engine.py.
+
+>>> engine = ContactDynamics(state, [Material(restitution=0.5, friction_static=0.4,
+...                          friction_sliding=0.4)], walls=box((0, 0, 0), (L, L, H)),
+...                          dt=1e-4)                                    # doctest: +SKIP
+>>> engine.run(time=0.5); engine.last_iterations, engine.last_residual  # doctest: +SKIP
+"""
+import math
+import warnings
+
+import numpy as np
+
+from ...core.engine import Contacts, SimulationError, WallContacts
+from ...core.species import Material
+from ...core.walls import FIXED, PISTON, Motion, Walls
+from ...core.triggers import NO_CONDITION, pauses
+from ..soft.energy import gravitational_energy, kinetic_energy
+from . import stepping as st
+from .bundles import Grains, PeriodicBox, Tables, WallBundle, new_work
+from .detection import new_lists
+
+# rewritten every step before they are read: not part of a snapshot
+_TRANSIENT = ("gap", "normal", "wall_gap", "wall_normal", "reverse_start", "reverse_pairs")
+
+
+def suggested_time_step(state, gravity):
+    """The time-step report of rigid grains: the free-fall time over the smallest radius
+    sqrt(R_min / |g|) [s] as the time scale of their motion, a step of 1/100 of it
+    suggested, at most 1/10 of it advised (a grain then falls well under the detection
+    gap per step); dict of criterion, critical_time_s, fraction (None), max_fraction,
+    suggested_dt_s.  ValueError without gravity (give dt)."""
+    g = float(np.linalg.norm(gravity))
+    if not g > 0:
+        raise ValueError("without gravity the contact dynamics engine has no time scale: "
+                         "give engine.dt")
+    t = math.sqrt(float(state.radii.min()) / g)
+    return {"criterion": "free-fall time over the smallest radius", "critical_time_s": t,
+            "fraction": None, "max_fraction": 0.1, "suggested_dt_s": 0.01 * t}
+
+
+def material_tables(materials):
+    """stepping Tables of the materials, mixed pair by pair by the geometric mean as
+    core/species.py does: restitution e (None: 1, elastic), friction (mu_s, mu_d)."""
+    k = len(materials)
+    e = np.array([1.0 if m.restitution is None else m.restitution for m in materials])
+    mu = np.array([[m.friction_static, m.friction_sliding] for m in materials])
+    for m in materials:
+        if m.friction_sliding > m.friction_static:
+            raise ValueError(f"material {m.name!r}: friction_sliding {m.friction_sliding} "
+                             f"exceeds friction_static {m.friction_static}")
+    return Tables(restitution=np.sqrt(np.outer(e, e)).reshape(k, k),
+                  friction=np.sqrt(mu[:, None, :] * mu[None, :, :]))
+
+
+def _gravity(value, dim):
+    gravity = np.asarray(value, dtype=np.float64)
+    if gravity.shape != (3,) or not np.all(np.isfinite(gravity)) \
+            or (dim == 2 and gravity[2] != 0):
+        raise ValueError(f"gravity must be a finite 3-vector [m/s^2], with zero z component "
+                         f"in 2D, got {value}")
+    return gravity
+
+
+class ContactDynamics:
+    """Rigid grains by contact dynamics (Moreau, Jean; Pérez Sec. 2 Eq. 11-12), SI units.
+
+    state : core.state.State;  materials : list of core.species.Material (restitution
+      e_n, None = 1; friction_static mu_s, friction_sliding mu_d <= mu_s; the rest unused)
+    walls : Plane/Cylinder/Segment list (fixed, "velocity", "sinusoid" or "servo"
+      motion, the servo solved with the contacts; piston walls are not offered);
+      periodic : Periodic list
+    gravity (3,) [m/s^2];  dt [s] (None: suggested_time_step);  theta [-] in [0.5, 1]
+      (stepping.py; 1 gives Pérez Eq. 11-12, 0.5 the default: exact free flight)
+    gap [m]: contacts are solved when closer than this at a step's start (None: 0.1 of
+      the smallest radius);  margin [m]: list skin beyond the gap (None: 0.2 mean radius)
+    tolerance [-], max_iterations: the NLGS convergence (solver.py).
+
+    After each run: ``last_iterations`` and ``last_residual`` of the last step,
+    ``mean_iterations`` over all steps, ``not_converged`` (steps whose residual stayed
+    above the tolerance after max_iterations sweeps; a run that adds some warns,
+    RuntimeWarning, with ``worst_residual``).
+    """
+
+    def __init__(self, state, materials, walls=(), periodic=(), gravity=(0.0, 0.0, -9.81),
+                 dt=None, theta=0.5, gap=None, margin=None, tolerance=1e-4,
+                 max_iterations=1000):
+        self.state = state
+        self.materials = list(materials) if materials else [Material()]
+        n_mat = len(self.materials)
+        if state.materials.size and (state.materials.min() < 0
+                                     or state.materials.max() >= n_mat):
+            raise ValueError(f"grain material ids must be in 0..{n_mat - 1}")
+        self.walls = walls if isinstance(walls, Walls) else Walls(walls, periodic)
+        if np.any(self.walls.material >= n_mat):
+            raise ValueError(f"wall material ids must be in 0..{n_mat - 1}")
+        for k in range(len(self.walls)):
+            self._check_motion(k, self.walls.motion_kind[k])
+        gravity = _gravity(gravity, state.dim)
+        self.tables = material_tables(self.materials)
+        if dt is None:
+            dt = suggested_time_step(state, gravity)["suggested_dt_s"]
+        if not (0.5 <= theta <= 1.0):
+            raise ValueError(f"theta must be in [0.5, 1], got {theta}")
+        gap = 0.1 * float(state.radii.min()) if gap is None else gap
+        margin = 0.2 * float(state.radii.mean()) if margin is None else margin
+        for name, value in (("dt", dt), ("gap", gap), ("margin", margin),
+                            ("tolerance", tolerance)):
+            if not (value > 0 and math.isfinite(value)):
+                raise ValueError(f"{name} must be a positive number, got {value}")
+        if max_iterations < 1:
+            raise ValueError(f"max_iterations must be >= 1, got {max_iterations}")
+        for d in range(3):
+            if self.walls.periodic_flag[d] and self.walls.periodic_length[d] < \
+                    2 * (2 * state.radii.max() + gap + margin):
+                raise ValueError(f"periodic length along axis {d} must be at least twice "
+                                 "the largest diameter plus gap and margin")
+        self.clock = np.zeros(st.NCLOCK)
+        self.clock[[st.TIME, st.DT, st.THETA, st.GAP, st.MARGIN, st.TOLERANCE]] = \
+            state.time, dt, theta, gap, margin, tolerance
+        self.clock[st.GX:st.GZ + 1] = gravity
+        self.counters = np.zeros(st.NCOUNTERS, np.int64)
+        self.counters[st.STEP] = self.counters[st.FIRST_STEP] = state.step
+        self.counters[st.MAX_ITERATIONS] = max_iterations
+        self.counters[st.FORCE_REBUILD] = 1
+        n = state.n
+        self.reference_positions = state.positions.copy()
+        self.reference_offset = self.walls.offset.copy()
+        self._servo = np.zeros((len(self.walls), 10))
+        self._push = np.zeros(len(self.walls))
+        self.old_velocities = np.zeros((n, 3))
+        self.old_angular_velocities = np.zeros((n, 3))
+        self._allocate(2 * n + 64, n // 4 + 16)
+
+    def _allocate(self, pairs, wall_candidates, keep=False):
+        """(Re)allocate the lists and work space, keeping the lists when ``keep``."""
+        old = self.lists if keep else None
+        self.lists = new_lists(self.state.n, pairs, wall_candidates, old)
+        self.work = new_work(pairs, wall_candidates)
+
+    def _check_motion(self, k, kind):
+        if kind == PISTON:
+            raise ValueError(
+                f"wall {self.walls.walls[k].name!r}: piston walls (a wall of a mass) are "
+                "not offered by the contact dynamics engine yet; use a servo wall")
+
+    # ------------------------------------------------------------------ bundles
+    def _grains(self):
+        s = self.state
+        free = s.fixed == 0
+        return Grains(positions=s.positions, velocities=s.velocities,
+                      angular_velocities=s.angular_velocities, orientations=s.orientations,
+                      radii=s.radii, masses=s.masses, inertias=s.inertias,
+                      inv_mass=np.where(free, 1.0 / s.masses, 0.0),
+                      inv_inertia=np.where(free, 1.0 / s.inertias, 0.0),
+                      materials=s.materials, fixed=s.fixed,
+                      reference_positions=self.reference_positions,
+                      old_velocities=self.old_velocities,
+                      old_angular_velocities=self.old_angular_velocities)
+
+    def _walls(self):
+        w = self.walls
+        return WallBundle(kind=w.kind, geometry=w.geometry, offset=w.offset, base=w.base,
+                          velocity=w.velocity, force=w.force, motion_kind=w.motion_kind,
+                          motion=w.motion, material=w.material,
+                          reference_offset=self.reference_offset, servo=self._servo,
+                          push=self._push)
+
+    def _periodic(self):
+        w = self.walls
+        return PeriodicBox(flag=w.periodic_flag, lo=w.periodic_lo, length=w.periodic_length)
+
+    # ------------------------------------------------------------------ running
+    @property
+    def dt(self):
+        """Time step [s]."""
+        return float(self.clock[st.DT])
+
+    @property
+    def theta(self):
+        """The theta of the Moreau-Jean step [-] (stepping.py)."""
+        return float(self.clock[st.THETA])
+
+    @property
+    def time(self):
+        """Simulated time [s]."""
+        return float(self.clock[st.TIME])
+
+    @property
+    def step(self):
+        """Steps done."""
+        return int(self.counters[st.STEP])
+
+    @property
+    def last_iterations(self):
+        """NLGS sweeps of the last step."""
+        return int(self.counters[st.ITERATIONS])
+
+    @property
+    def last_residual(self):
+        """Convergence residual of the last step [-] (solver.py)."""
+        return float(self.clock[st.RESIDUAL])
+
+    @property
+    def mean_iterations(self):
+        """NLGS sweeps per step since the start (0 before the first step)."""
+        steps = self.step - int(self.counters[st.FIRST_STEP])
+        return float(self.counters[st.TOTAL_ITERATIONS]) / steps if steps > 0 else 0.0
+
+    @property
+    def not_converged(self):
+        """Steps whose NLGS residual stayed above the tolerance after max_iterations."""
+        return int(self.counters[st.NOT_CONVERGED])
+
+    @property
+    def worst_residual(self):
+        """The largest residual of a step that did not converge (0 when all did)."""
+        return float(self.clock[st.WORST_RESIDUAL])
+
+    def _chunk(self, nsteps):
+        total = 0
+        while True:
+            status, done = st.advance(self._grains(), self.lists, self._walls(),
+                                      self._periodic(), self.tables, self.work, self.clock,
+                                      self.counters, nsteps)
+            total += done
+            nsteps -= done
+            self.state.time = self.time
+            self.state.step = self.step
+            if status != st.GROW:
+                return status, total
+            need_p = int(self.counters[st.NEED_PAIRS])
+            need_w = int(self.counters[st.NEED_WALLS])
+            self._allocate(max(int(1.3 * need_p) + 64, self.lists.partners.size),
+                           max(int(1.3 * need_w) + 16, self.lists.wall_ids.size), keep=True)
+
+    def run(self, steps=None, time=None, until=None, every=(), max_chunk=20000,
+            between=None):
+        """Advance ``steps`` steps or ``time`` seconds (engine.Engine.run: the run ends at
+        the first step end not before the time), or until ``until`` (MaxSpeedBelow,
+        EnergyRatioBelow, tested after every step) holds.  ``every``: (trigger,
+        callback(engine)) pairs run where their Periodic falls; ``between``:
+        callback(engine) after every chunk, True stops the run.  Returns "done",
+        "condition" or "stopped"; SimulationError on non-finite positions or velocities.
+        Warns (RuntimeWarning) when some step of the run did not converge."""
+        if steps is None and time is None:
+            raise ValueError("run needs steps= or time= (an upper bound, also with until=)")
+        if steps is None:
+            steps = int(math.ceil(time / self.dt - 1e-6))
+        if steps < 0:
+            raise ValueError(f"steps must be >= 0, got {steps}")
+        periods = {p: p.period(self.dt) for trigger, _ in every for p in pauses(trigger)}
+        end = self.step + steps
+        failed = self.not_converged
+        self.counters[st.COND_KIND] = until.kind if until is not None else NO_CONDITION
+        self.clock[st.COND_VALUE] = until.value if until is not None else 0.0
+        try:
+            while self.step < end:
+                n = min(end - self.step, max_chunk)
+                for period in periods.values():
+                    n = min(n, period - self.step % period)
+                status, _ = self._chunk(n)
+                for trigger, cb in every:
+                    if trigger.fires(lambda p: self.step % periods[p] == 0, self.time):
+                        cb(self)
+                if status == st.CONDITION:
+                    return "condition"
+                if status == st.NAN:
+                    raise SimulationError(
+                        f"non-finite position or velocity at step {self.step} (t = "
+                        f"{self.time:.6g} s): the contact solve failed (see not_converged "
+                        "and last_residual) or grains started inside each other")
+                if between is not None and between(self):
+                    return "stopped"
+        finally:
+            self.counters[st.COND_KIND] = NO_CONDITION
+            if self.not_converged > failed:
+                warnings.warn(
+                    f"contact dynamics: {self.not_converged - failed} steps of this run "
+                    f"did not converge within {int(self.counters[st.MAX_ITERATIONS])} NLGS "
+                    f"sweeps (worst residual {self.worst_residual:.3g} against the "
+                    f"tolerance {self.clock[st.TOLERANCE]:.3g})", RuntimeWarning,
+                    stacklevel=2)
+        return "done"
+
+    # ------------------------------------------------------------------ snapshots
+    def _arrays(self):
+        arrays = {f"grains/{k}": v for k, v in self.state.arrays().items()}
+        arrays.update({f"lists/{k}": v for k, v in self.lists._asdict().items()
+                       if not k.startswith("scratch_") and k not in _TRANSIENT})
+        w = self.walls
+        arrays.update({"walls/offset": w.offset, "walls/base": w.base,
+                       "walls/velocity": w.velocity, "walls/force": w.force,
+                       "walls/motion_kind": w.motion_kind, "walls/motion": w.motion,
+                       "loop/reference_positions": self.reference_positions,
+                       "loop/reference_offset": self.reference_offset,
+                       "loop/clock": self.clock, "loop/counters": self.counters})
+        return arrays
+
+    def snapshot(self):
+        """Every mutable array of the run by name (copies): grains, the contact lists
+        with the impulses of the last step (the solver's warm start), walls, clock and
+        counters; ``restore`` of it continues the run bit for bit."""
+        return {k: np.array(v, copy=True) for k, v in self._arrays().items()}
+
+    def restore(self, arrays):
+        """Put a ``snapshot`` back (an engine built from the same inputs); ValueError
+        naming what is missing or does not fit."""
+        missing = [k for k in self._arrays() if k not in arrays]
+        if missing:
+            raise ValueError(f"snapshot lacks {missing}")
+        pairs = np.asarray(arrays["lists/partners"]).size
+        wall_candidates = np.asarray(arrays["lists/wall_ids"]).size
+        self._allocate(pairs, wall_candidates)
+        for name, target in self._arrays().items():
+            value = np.asarray(arrays[name])
+            if value.shape != target.shape or value.dtype != target.dtype:
+                raise ValueError(f"snapshot array {name}: {value.dtype}{value.shape} does "
+                                 f"not fit {target.dtype}{target.shape}")
+            target[...] = value
+        # the transient arrays are rewritten before use; the reverse lists by a rebuild
+        self.state.time = self.time
+        self.state.step = self.step
+
+    # ------------------------------------------------------------------ contacts
+    def _touching(self, start, impulses):
+        n = self.state.n
+        m = int(start[n])
+        touching = np.any(impulses[:m] != 0.0, axis=1)
+        return touching, impulses[:m][touching] / self.dt
+
+    def contacts(self):
+        """The grain pairs that carried an impulse in the last step (engine.Contacts):
+        force = impulse / dt [N], split along the normal the impulse acted on (from the
+        centres at the start of the step); the contact point divides the present
+        separation r_i - r_j in proportion to the radii (branch_i = -R_i (r_i - r_j) /
+        (R_i + R_j)), so that branch_j - branch_i = r_i - r_j."""
+        touching, force = self._touching(self.lists.start, self.lists.impulses)
+        m = touching.size
+        i = self.lists.owner[:m][touching].astype(np.int64)
+        j = self.lists.partners[:m][touching].astype(np.int64)
+        normal = self.lists.normal[:m][touching]
+        s = self.state
+        separation = self.walls.minimum_image(s.positions[i] - s.positions[j])
+        r_i, r_j = s.radii[i], s.radii[j]
+        share = (r_i / (r_i + r_j))[:, None]
+        normal_force = np.einsum("ka,ka->k", force, normal)
+        return Contacts(i, j, -share * separation, (1.0 - share) * separation,
+                        normal_force, force - normal_force[:, None] * normal, normal)
+
+    def wall_contacts(self):
+        """The grain-wall contacts that carried an impulse in the last step
+        (engine.WallContacts), force = impulse / dt [N] split along the normal it acted
+        on; the contact point is the foot of the grain's centre on the wall."""
+        touching, force = self._touching(self.lists.wall_start, self.lists.wall_impulses)
+        m = touching.size
+        grain = self.lists.wall_owner[:m][touching].astype(np.int64)
+        wall = self.lists.wall_ids[:m][touching].astype(np.int64)
+        distance, _ = self.walls.distances(self.state.positions[grain], wall)
+        normal = self.lists.wall_normal[:m][touching]
+        normal_force = np.einsum("ka,ka->k", force, normal)
+        return WallContacts(grain, wall, -distance[:, None] * normal, normal_force,
+                            force - normal_force[:, None] * normal, normal)
+
+    def energies(self):
+        """The energies of engine.ENERGIES [J]: kinetic, rotational and gravitational of
+        the free grains, elastic 0 (rigid grains), the dissipation split and the wall work
+        the loop accumulates (stepping.py)."""
+        translational, rotational = kinetic_energy(self.state)
+        return {"kinetic": translational, "rotational": rotational,
+                "gravitational": gravitational_energy(self.state, self.gravity),
+                "elastic": 0.0,
+                "dissipated_normal": float(self.clock[st.DISS_N]),
+                "dissipated_tangential": float(self.clock[st.DISS_T]),
+                "wall_work": float(self.clock[st.WALL_WORK])}
+
+    # ------------------------------------------------------------------ changes by hand
+    @property
+    def gravity(self):
+        """Gravitational acceleration (3,) [m/s^2] (a copy); acts from the next step."""
+        return self.clock[st.GX:st.GZ + 1].copy()
+
+    @gravity.setter
+    def gravity(self, value):
+        self.clock[st.GX:st.GZ + 1] = _gravity(value, self.state.dim)
+
+    def _forget(self, chosen):
+        """Zero the impulses of every listed contact of the grains ``chosen`` (N,) bool."""
+        n = self.state.n
+        lists = self.lists
+        m, q = int(lists.start[n]), int(lists.wall_start[n])
+        stale = chosen[lists.owner[:m]] | chosen[lists.partners[:m]]
+        lists.impulses[:m][stale] = 0.0
+        lists.wall_impulses[:q][chosen[lists.wall_owner[:q]]] = 0.0
+        self.counters[st.FORCE_REBUILD] = 1
+
+    def relocate(self, indices, positions, velocities, angular_velocities=None):
+        """Move grains ``indices`` to ``positions`` (K, 3) [m] with ``velocities`` (K, 3)
+        [m/s] and ``angular_velocities`` (K, 3) [rad/s] (None: zero)
+        (engine.Engine.relocate): their contacts' impulses are forgotten (no warm start
+        from the old place) and the lists are rebuilt before the next step."""
+        s = self.state
+        idx = np.asarray(indices, dtype=np.int64).reshape(-1)
+        if idx.size == 0:
+            return
+        if idx.min() < 0 or idx.max() >= s.n or np.unique(idx).size != idx.size:
+            raise ValueError(f"relocate needs distinct grain indices in 0..{s.n - 1}")
+        moved = {"positions": positions, "velocities": velocities,
+                 "angular_velocities": np.zeros((idx.size, 3)) if angular_velocities is None
+                 else angular_velocities}
+        for name, value in moved.items():
+            value = np.asarray(value, dtype=np.float64)
+            if value.shape != (idx.size, 3) or not np.all(np.isfinite(value)):
+                raise ValueError(f"relocate: {name} must be finite, ({idx.size}, 3)")
+            moved[name] = value
+        if s.dim == 2 and (np.any(moved["positions"][:, 2] != 0)
+                           or np.any(moved["velocities"][:, 2] != 0)
+                           or np.any(moved["angular_velocities"][:, :2] != 0)):
+            raise ValueError("relocate in 2D: positions and velocities need zero z "
+                             "components, angular velocities zero x and y")
+        for name, value in moved.items():
+            getattr(s, name)[idx] = value
+        chosen = np.zeros(s.n, bool)
+        chosen[idx] = True
+        self._forget(chosen)
+
+    def hold(self, indices):
+        """Stop grains ``indices`` and hold them in place (engine.Engine.hold): obstacles
+        of infinite mass to the others, out of the energies, until ``release``."""
+        idx = np.asarray(indices, dtype=np.int64).reshape(-1)
+        if idx.size and (idx.min() < 0 or idx.max() >= self.state.n):
+            raise ValueError(f"hold needs grain indices in 0..{self.state.n - 1}")
+        s = self.state
+        s.fixed[idx] = 1
+        s.velocities[idx] = 0.0
+        s.angular_velocities[idx] = 0.0
+
+    def release(self, indices, positions, velocities, angular_velocities=None):
+        """Free held grains ``indices`` at ``positions`` with ``velocities``, as relocate
+        puts them (engine.Engine.release)."""
+        self.relocate(indices, positions, velocities, angular_velocities)
+        self.state.fixed[np.asarray(indices, dtype=np.int64).reshape(-1)] = 0
+
+    def set_motion(self, wall, motion):
+        """Prescribe ``motion`` (walls.Motion) to ``wall`` from now on
+        (engine.Engine.set_motion); "piston" is refused (ValueError)."""
+        k = self.walls.index(wall)
+        kind, row = motion.row()
+        self._check_motion(k, kind)
+        row[7] = max(row[7], self.time)
+        w = self.walls
+        w.motion_kind[k], w.motion[k] = kind, row
+        w.base[k] = w.offset[k]
+        if kind == FIXED:
+            w.velocity[k] = 0.0
+
+    def set_servo(self, wall, *, force=None, stress=None, gain=None, time_constant=None,
+                  stiffness=None, max_speed=None, direction=None):
+        """Make ``wall`` a servo (stress-controlled) wall or change its settings
+        (engine.Engine.set_servo): target ``force`` [N] or ``stress`` [Pa] times the
+        wall's area, gain ``gain`` [m/(N s)] or 1/(``stiffness`` [N/m] ``time_constant``
+        [s]), largest speed ``max_speed`` [m/s], ``direction`` into the grains; a setting
+        not given keeps its value on a servo wall.  The wall's velocity is solved with
+        the contact impulses of each step (solver.servo_velocity), so against rigid
+        grains at rest it carries the target at once."""
+        k = self.walls.index(wall)
+        if stress is not None:
+            if force is not None:
+                raise ValueError("set_servo takes force= or stress=, not both")
+            area = self.walls.walls[k].area
+            if area is None:
+                raise ValueError(f"wall {self.walls.walls[k].name!r} has no area: give the "
+                                 "servo a force [N]")
+            force = stress * area
+        if time_constant is not None or stiffness is not None:
+            if gain is not None or time_constant is None or stiffness is None \
+                    or not time_constant > 0 or not stiffness > 0:
+                raise ValueError("set_servo takes gain= [m/(N s)], or time_constant= [s] "
+                                 "and stiffness= [N/m], both > 0")
+            gain = 1.0 / (stiffness * time_constant)
+        settings = {"force": force, "gain": gain, "max_speed": max_speed,
+                    "direction": direction}
+        now = self.walls.motion_of(k)
+        for name, value in settings.items():
+            if value is None:
+                if now.kind != "servo":
+                    raise ValueError(f"set_servo: wall {self.walls.walls[k].name!r} is not "
+                                     f"a servo yet: give its {name}")
+                settings[name] = getattr(now, name)
+        self.set_motion(k, Motion("servo", **settings))
+
+    def place_wall(self, wall, offset):
+        """Put ``wall`` at ``offset`` (3,) [m] from where it was built, at once
+        (engine.Engine.place_wall); the lists are rebuilt before the next step."""
+        k = self.walls.index(wall)
+        offset = np.asarray(offset, dtype=np.float64)
+        if offset.shape != (3,) or not np.all(np.isfinite(offset)):
+            raise ValueError(f"wall offset must be a finite 3-vector [m], got {offset}")
+        w = self.walls
+        w.base[k] += offset - w.offset[k]
+        w.offset[k] = offset
+        self.counters[st.FORCE_REBUILD] = 1
