@@ -168,6 +168,45 @@ class State:
         r = self.radii
         return 4.0 / 3.0 * np.pi * r**3 if self.dim == 3 else np.pi * r**2
 
+    def move(self, indices, positions, velocities, angular_velocities=None) -> np.ndarray:
+        """Put grains ``indices`` at ``positions`` (K, 3) [m] with ``velocities`` (K, 3)
+        [m/s] and ``angular_velocities`` (K, 3) [rad/s] (None: zero), after checking
+        them (distinct indices, finite values, in 2D zero z and zero x, y spins): the
+        grains' side of every engine's relocate.  Returns the indices (K,) int64;
+        ValueError naming what does not fit."""
+        idx = np.asarray(indices, dtype=np.int64).reshape(-1)
+        if idx.size == 0:
+            return idx
+        if idx.min() < 0 or idx.max() >= self.n or np.unique(idx).size != idx.size:
+            raise ValueError(f"relocate needs distinct grain indices in 0..{self.n - 1}")
+        moved = {"positions": positions, "velocities": velocities,
+                 "angular_velocities": np.zeros((idx.size, 3)) if angular_velocities is None
+                 else angular_velocities}
+        for name, value in moved.items():
+            value = np.asarray(value, dtype=np.float64)
+            if value.shape != (idx.size, 3) or not np.all(np.isfinite(value)):
+                raise ValueError(f"relocate: {name} must be finite, ({idx.size}, 3)")
+            moved[name] = value
+        if self.dim == 2 and (np.any(moved["positions"][:, 2] != 0)
+                              or np.any(moved["velocities"][:, 2] != 0)
+                              or np.any(moved["angular_velocities"][:, :2] != 0)):
+            raise ValueError("relocate in 2D: positions and velocities need zero z "
+                             "components, angular velocities zero x and y")
+        for name, value in moved.items():
+            getattr(self, name)[idx] = value
+        return idx
+
+    def stop(self, indices) -> np.ndarray:
+        """Fix grains ``indices`` where they are, at rest (every engine's hold); returns
+        the indices (K,) int64, ValueError when one is out of range."""
+        idx = np.asarray(indices, dtype=np.int64).reshape(-1)
+        if idx.size and (idx.min() < 0 or idx.max() >= self.n):
+            raise ValueError(f"hold needs grain indices in 0..{self.n - 1}")
+        self.fixed[idx] = 1
+        self.velocities[idx] = 0.0
+        self.angular_velocities[idx] = 0.0
+        return idx
+
     def arrays(self) -> dict:
         """All per-grain arrays by name (for checkpoints and device transfer)."""
         names = ("positions", "velocities", "angular_velocities", "orientations", "forces",

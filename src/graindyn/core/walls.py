@@ -343,6 +343,62 @@ class Walls:
                 return k
         raise KeyError(f"no wall named {name!r}; walls are {[w.name for w in self.walls]}")
 
+    def prescribe(self, k, motion, now):
+        """Wall k (index or name) follows ``motion`` from ``now`` [s] on (every engine's
+        set_motion): from its start or now, whichever is later, from where the wall is
+        (a sinusoid's reference place, ``base``, is set there); a fixed wall stops at
+        once.  Returns the wall's index."""
+        k = self.index(k)
+        kind, row = motion.row()
+        row[7] = max(row[7], now)
+        self.motion_kind[k], self.motion[k] = kind, row
+        self.base[k] = self.offset[k]
+        if kind == FIXED:
+            self.velocity[k] = 0.0
+        return k
+
+    def servo(self, k, *, force=None, stress=None, gain=None, time_constant=None,
+              stiffness=None, max_speed=None, direction=None):
+        """The servo Motion of wall k that every engine's set_servo asks for (the settings
+        of core.engine.Engine.set_servo; those not given kept from a wall that is a servo
+        already); ValueError naming what is missing or contradicts."""
+        k = self.index(k)
+        name = self.walls[k].name
+        if stress is not None:
+            if force is not None:
+                raise ValueError("set_servo takes force= or stress=, not both")
+            if self.walls[k].area is None:
+                raise ValueError(f"wall {name!r} has no area: give the servo a force [N]")
+            force = stress * self.walls[k].area
+        if time_constant is not None or stiffness is not None:
+            if gain is not None or time_constant is None or stiffness is None \
+                    or not time_constant > 0 or not stiffness > 0:
+                raise ValueError("set_servo takes gain= [m/(N s)], or time_constant= [s] "
+                                 "and stiffness= [N/m], both > 0")
+            gain = 1.0 / (stiffness * time_constant)
+        settings = {"force": force, "gain": gain, "max_speed": max_speed,
+                    "direction": direction}
+        now = self.motion_of(k)
+        for key, value in settings.items():
+            if value is None:
+                if now.kind != "servo":
+                    raise ValueError(f"set_servo: wall {name!r} is not a servo yet: give "
+                                     f"its {key}")
+                settings[key] = getattr(now, key)
+        return Motion("servo", **settings)
+
+    def place(self, k, offset):
+        """Put wall k (index or name) at ``offset`` (3,) [m] from where it was built, at
+        once (every engine's place_wall; a sinusoid goes on about the new place).
+        Returns the wall's index; ValueError unless a finite 3-vector."""
+        k = self.index(k)
+        offset = np.asarray(offset, dtype=np.float64)
+        if offset.shape != (3,) or not np.all(np.isfinite(offset)):
+            raise ValueError(f"wall offset must be a finite 3-vector [m], got {offset}")
+        self.base[k] += offset - self.offset[k]
+        self.offset[k] = offset
+        return k
+
     def motion_of(self, k):
         """The Motion wall k (index or name) follows now (Motion.from_row)."""
         k = self.index(k)

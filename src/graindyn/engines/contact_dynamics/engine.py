@@ -14,7 +14,7 @@ import numpy as np
 
 from ...core.engine import Contacts, SimulationError, WallContacts
 from ...core.species import Material
-from ...core.walls import FIXED, PISTON, Motion, Walls
+from ...core.walls import PISTON, Walls
 from ...core.triggers import NO_CONDITION, pauses
 from ..soft.energy import gravitational_energy, kinetic_energy
 from . import stepping as st
@@ -401,26 +401,9 @@ class ContactDynamics:
         (engine.Engine.relocate): their contacts' impulses are forgotten (no warm start
         from the old place) and the lists are rebuilt before the next step."""
         s = self.state
-        idx = np.asarray(indices, dtype=np.int64).reshape(-1)
+        idx = s.move(indices, positions, velocities, angular_velocities)
         if idx.size == 0:
             return
-        if idx.min() < 0 or idx.max() >= s.n or np.unique(idx).size != idx.size:
-            raise ValueError(f"relocate needs distinct grain indices in 0..{s.n - 1}")
-        moved = {"positions": positions, "velocities": velocities,
-                 "angular_velocities": np.zeros((idx.size, 3)) if angular_velocities is None
-                 else angular_velocities}
-        for name, value in moved.items():
-            value = np.asarray(value, dtype=np.float64)
-            if value.shape != (idx.size, 3) or not np.all(np.isfinite(value)):
-                raise ValueError(f"relocate: {name} must be finite, ({idx.size}, 3)")
-            moved[name] = value
-        if s.dim == 2 and (np.any(moved["positions"][:, 2] != 0)
-                           or np.any(moved["velocities"][:, 2] != 0)
-                           or np.any(moved["angular_velocities"][:, :2] != 0)):
-            raise ValueError("relocate in 2D: positions and velocities need zero z "
-                             "components, angular velocities zero x and y")
-        for name, value in moved.items():
-            getattr(s, name)[idx] = value
         chosen = np.zeros(s.n, bool)
         chosen[idx] = True
         self._forget(chosen)
@@ -428,13 +411,7 @@ class ContactDynamics:
     def hold(self, indices):
         """Stop grains ``indices`` and hold them in place (engine.Engine.hold): obstacles
         of infinite mass to the others, out of the energies, until ``release``."""
-        idx = np.asarray(indices, dtype=np.int64).reshape(-1)
-        if idx.size and (idx.min() < 0 or idx.max() >= self.state.n):
-            raise ValueError(f"hold needs grain indices in 0..{self.state.n - 1}")
-        s = self.state
-        s.fixed[idx] = 1
-        s.velocities[idx] = 0.0
-        s.angular_velocities[idx] = 0.0
+        self.state.stop(indices)
 
     def release(self, indices, positions, velocities, angular_velocities=None):
         """Free held grains ``indices`` at ``positions`` with ``velocities``, as relocate
@@ -446,14 +423,8 @@ class ContactDynamics:
         """Prescribe ``motion`` (walls.Motion) to ``wall`` from now on
         (engine.Engine.set_motion); "piston" is refused (ValueError)."""
         k = self.walls.index(wall)
-        kind, row = motion.row()
-        self._check_motion(k, kind)
-        row[7] = max(row[7], self.time)
-        w = self.walls
-        w.motion_kind[k], w.motion[k] = kind, row
-        w.base[k] = w.offset[k]
-        if kind == FIXED:
-            w.velocity[k] = 0.0
+        self._check_motion(k, motion.row()[0])
+        self.walls.prescribe(k, motion, self.time)
 
     def set_servo(self, wall, *, force=None, stress=None, gain=None, time_constant=None,
                   stiffness=None, max_speed=None, direction=None):
@@ -464,40 +435,12 @@ class ContactDynamics:
         not given keeps its value on a servo wall.  The wall's velocity is solved with
         the contact impulses of each step (solver.servo_velocity), so against rigid
         grains at rest it carries the target at once."""
-        k = self.walls.index(wall)
-        if stress is not None:
-            if force is not None:
-                raise ValueError("set_servo takes force= or stress=, not both")
-            area = self.walls.walls[k].area
-            if area is None:
-                raise ValueError(f"wall {self.walls.walls[k].name!r} has no area: give the "
-                                 "servo a force [N]")
-            force = stress * area
-        if time_constant is not None or stiffness is not None:
-            if gain is not None or time_constant is None or stiffness is None \
-                    or not time_constant > 0 or not stiffness > 0:
-                raise ValueError("set_servo takes gain= [m/(N s)], or time_constant= [s] "
-                                 "and stiffness= [N/m], both > 0")
-            gain = 1.0 / (stiffness * time_constant)
-        settings = {"force": force, "gain": gain, "max_speed": max_speed,
-                    "direction": direction}
-        now = self.walls.motion_of(k)
-        for name, value in settings.items():
-            if value is None:
-                if now.kind != "servo":
-                    raise ValueError(f"set_servo: wall {self.walls.walls[k].name!r} is not "
-                                     f"a servo yet: give its {name}")
-                settings[name] = getattr(now, name)
-        self.set_motion(k, Motion("servo", **settings))
+        self.set_motion(wall, self.walls.servo(
+            wall, force=force, stress=stress, gain=gain, time_constant=time_constant,
+            stiffness=stiffness, max_speed=max_speed, direction=direction))
 
     def place_wall(self, wall, offset):
         """Put ``wall`` at ``offset`` (3,) [m] from where it was built, at once
         (engine.Engine.place_wall); the lists are rebuilt before the next step."""
-        k = self.walls.index(wall)
-        offset = np.asarray(offset, dtype=np.float64)
-        if offset.shape != (3,) or not np.all(np.isfinite(offset)):
-            raise ValueError(f"wall offset must be a finite 3-vector [m], got {offset}")
-        w = self.walls
-        w.base[k] += offset - w.offset[k]
-        w.offset[k] = offset
+        self.walls.place(wall, offset)
         self.counters[st.FORCE_REBUILD] = 1

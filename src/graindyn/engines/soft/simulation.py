@@ -14,7 +14,7 @@ from ...core.engine import Contacts, OverlapError, SimulationError, WallContacts
 from ...core.neighbors import list_owners
 from ...core.species import ContactModel, Material
 from ...core.triggers import NO_CONDITION, pauses
-from ...core.walls import FIXED, Motion, Walls
+from ...core.walls import Walls
 from . import energy, loop
 from .bundles import Grains, Pairs, PeriodicBox, WallPairs, wall_bundle
 from .contacts import block_count
@@ -576,26 +576,9 @@ class Simulation:
         the relocated grains' contacts held leaves the energy balance, as their
         potential and kinetic energy change."""
         s = self.state
-        idx = np.asarray(indices, dtype=np.int64).reshape(-1)
+        idx = s.move(indices, positions, velocities, angular_velocities)
         if idx.size == 0:
             return
-        if idx.min() < 0 or idx.max() >= s.n or np.unique(idx).size != idx.size:
-            raise ValueError(f"relocate needs distinct grain indices in 0..{s.n - 1}")
-        moved = {"positions": positions, "velocities": velocities,
-                 "angular_velocities": np.zeros((idx.size, 3)) if angular_velocities is None
-                 else angular_velocities}
-        for name, value in moved.items():
-            value = np.asarray(value, dtype=np.float64)
-            if value.shape != (idx.size, 3) or not np.all(np.isfinite(value)):
-                raise ValueError(f"relocate: {name} must be finite, ({idx.size}, 3)")
-            moved[name] = value
-        if s.dim == 2 and (np.any(moved["positions"][:, 2] != 0)
-                           or np.any(moved["velocities"][:, 2] != 0)
-                           or np.any(moved["angular_velocities"][:, :2] != 0)):
-            raise ValueError("relocate in 2D: positions and velocities need zero z "
-                             "components, angular velocities zero x and y")
-        for name, value in moved.items():
-            getattr(s, name)[idx] = value
         chosen = np.zeros(s.n, bool)
         chosen[idx] = True
         for lists, partners in ((self.pairs, True), (self.wall_pairs, False)):
@@ -613,13 +596,7 @@ class Simulation:
     def hold(self, indices):
         """Stop grains ``indices`` and hold them where they are (engine.Engine.hold): they
         become fixed obstacles, out of the energies, until ``release``."""
-        idx = np.asarray(indices, dtype=np.int64).reshape(-1)
-        if idx.size and (idx.min() < 0 or idx.max() >= self.state.n):
-            raise ValueError(f"hold needs grain indices in 0..{self.state.n - 1}")
-        s = self.state
-        s.fixed[idx] = 1
-        s.velocities[idx] = 0.0
-        s.angular_velocities[idx] = 0.0
+        self.state.stop(indices)
         self.reset_integrator_history()
 
     def release(self, indices, positions, velocities, angular_velocities=None):
@@ -633,14 +610,7 @@ class Simulation:
         (engine.Engine.set_motion): the motion starts at its ``start`` [s] or now,
         whichever is later, from where the wall is (a sinusoid's reference place, the
         walls' ``base``, is set there); a fixed wall stops at once."""
-        k = self.walls.index(wall)
-        kind, row = motion.row()
-        row[7] = max(row[7], self.time)
-        w = self.walls
-        w.motion_kind[k], w.motion[k] = kind, row
-        w.base[k] = w.offset[k]
-        if kind == FIXED:
-            w.velocity[k] = 0.0
+        self.walls.prescribe(wall, motion, self.time)
 
     def set_servo(self, wall, *, force=None, stress=None, gain=None, time_constant=None,
                   stiffness=None, max_speed=None, direction=None):
@@ -650,31 +620,9 @@ class Simulation:
         1/(``stiffness`` [N/m] ``time_constant`` [s]), largest speed ``max_speed``
         [m/s], ``direction`` into the grains; a setting not given keeps its value on a
         servo wall."""
-        k = self.walls.index(wall)
-        if stress is not None:
-            if force is not None:
-                raise ValueError("set_servo takes force= or stress=, not both")
-            area = self.walls.walls[k].area
-            if area is None:
-                raise ValueError(f"wall {self.walls.walls[k].name!r} has no area: give the "
-                                 "servo a force [N]")
-            force = stress * area
-        if time_constant is not None or stiffness is not None:
-            if gain is not None or time_constant is None or stiffness is None \
-                    or not time_constant > 0 or not stiffness > 0:
-                raise ValueError("set_servo takes gain= [m/(N s)], or time_constant= [s] "
-                                 "and stiffness= [N/m], both > 0")
-            gain = 1.0 / (stiffness * time_constant)
-        settings = {"force": force, "gain": gain, "max_speed": max_speed,
-                    "direction": direction}
-        now = self.walls.motion_of(k)
-        for name, value in settings.items():
-            if value is None:
-                if now.kind != "servo":
-                    raise ValueError(f"set_servo: wall {self.walls.walls[k].name!r} is not "
-                                     f"a servo yet: give its {name}")
-                settings[name] = getattr(now, name)
-        self.set_motion(k, Motion("servo", **settings))
+        self.set_motion(wall, self.walls.servo(
+            wall, force=force, stress=stress, gain=gain, time_constant=time_constant,
+            stiffness=stiffness, max_speed=max_speed, direction=direction))
 
     def relax(self, fixed=None, force_tolerance=1e-5):
         """Move the grains to the minimum of Karrech et al.'s Eq. 29 (Hertz contact
@@ -696,10 +644,4 @@ class Simulation:
         at once (engine.Engine.place_wall; a sinusoid goes on about the new place).  The
         half-skin rule sees the jump, so the lists are rebuilt before the next step; the
         wall's contacts act from the next force evaluation."""
-        k = self.walls.index(wall)
-        offset = np.asarray(offset, dtype=np.float64)
-        if offset.shape != (3,) or not np.all(np.isfinite(offset)):
-            raise ValueError(f"wall offset must be a finite 3-vector [m], got {offset}")
-        w = self.walls
-        w.base[k] += offset - w.offset[k]
-        w.offset[k] = offset
+        self.walls.place(wall, offset)
