@@ -119,8 +119,10 @@ def hole_rows(points):
 
 
 def flow_fit(rows):
-    """The Beverloo fit (analysis.flow.fit_beverloo) of the hole rows' mean flow rates,
-    weighted by their seed-to-seed standard errors when every row has one."""
+    """The Beverloo fit (analysis.flow.fit_beverloo) of the mean flow rates of the holes
+    that never jammed (Beverloo's law is one of steady flow; a hole that jams flows in
+    bursts), weighted by their seed-to-seed standard errors when every row has one."""
+    rows = [r for r in rows if r["count"] == 0]
     return fit_beverloo([r["R"] for r in rows], [r["flow_rate_per_s"] for r in rows],
                         [r["flow_rate_err"] for r in rows],
                         d=rows[0]["d_ave_m"] if rows else None,
