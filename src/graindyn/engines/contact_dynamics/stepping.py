@@ -40,7 +40,7 @@ import math
 
 import numpy as np
 
-from ..._jit import kernel
+from ..._jit import kernel, scalar
 from ...core.triggers import ENERGY_RATIO_BELOW, MAX_SPEED_BELOW
 from ...core.walls import SERVO, walls_advance
 from .detection import contact_geometry, moved_beyond, relist
@@ -116,6 +116,22 @@ def _bounds(velocities, angular_velocities, radii, materials, lists, wall_materi
     return largest
 
 
+@scalar
+def contact_slot(k, n, lists, radii, wall_velocity, active, wall_active):
+    """Entry k of the walk over every listed pair, then every wall candidate, of ``n``
+    grains: (on, wall, slot, i, j, w, r_j, v_wall (3)).  on: the contact is active;
+    slot: its row in the pair (or wall) arrays; j = -1 and r_j = 0 for a wall contact,
+    w = -1 and v_wall = 0 for a pair."""
+    if k >= lists.start[n]:
+        q = k - lists.start[n]
+        w = np.int64(lists.wall_ids[q])
+        return (wall_active[q] != 0, True, q, np.int64(lists.wall_owner[q]), np.int64(-1), w,
+                0.0, wall_velocity[w, 0], wall_velocity[w, 1], wall_velocity[w, 2])
+    j = np.int64(lists.partners[k])
+    return (active[k] != 0, False, k, np.int64(lists.owner[k]), j, np.int64(-1), radii[j],
+            0.0, 0.0, 0.0)
+
+
 @kernel
 def _free_and_warm(velocities, angular_velocities, inv_mass, inv_inertia, radii, materials,
                    lists, wall_material, wall_velocity, active, wall_active, friction,
@@ -126,48 +142,28 @@ def _free_and_warm(velocities, angular_velocities, inv_mass, inv_inertia, radii,
     normal (compressive part only) and cut to the friction cone mu_s P_n."""
     n = radii.size
     for k in range(lists.start[n] + lists.wall_start[n]):
-        wall = k >= lists.start[n]
-        q = k - lists.start[n]
+        on, wall, slot, i, j, w, rj, vx, vy, vz = contact_slot(
+            k, n, lists, radii, wall_velocity, active, wall_active)
+        if not on:
+            continue
         if wall:
-            if not wall_active[q]:
-                continue
-            i = lists.wall_owner[q]
-            w = lists.wall_ids[q]
-            j = -1
-            rj = 0.0
-            vx, vy, vz = wall_velocity[w, 0], wall_velocity[w, 1], wall_velocity[w, 2]
-            normal, store, slot = lists.wall_normal, wall_free, q
+            normal, store = lists.wall_normal, wall_free
         else:
-            if not active[k]:
-                continue
-            i = lists.owner[k]
-            j = np.int64(lists.partners[k])
-            rj = radii[j]
-            vx, vy, vz = 0.0, 0.0, 0.0
-            normal, store, slot = lists.normal, free, k
+            normal, store = lists.normal, free
         nx, ny, nz = normal[slot, 0], normal[slot, 1], normal[slot, 2]
         store[slot, 0], store[slot, 1], store[slot, 2] = contact_velocity(
             velocities, angular_velocities, i, j, radii[i], rj, nx, ny, nz, vx, vy, vz)
     for k in range(lists.start[n] + lists.wall_start[n]):
-        wall = k >= lists.start[n]
-        q = k - lists.start[n]
+        on, wall, slot, i, j, w, rj, vx, vy, vz = contact_slot(
+            k, n, lists, radii, wall_velocity, active, wall_active)
+        if not on:
+            continue
         if wall:
-            if not wall_active[q]:
-                continue
-            i = lists.wall_owner[q]
-            w = lists.wall_ids[q]
-            j = -1
-            rj = 0.0
             mu_s = friction[materials[i], wall_material[w], 0]
-            normal, impulses, slot = lists.wall_normal, lists.wall_impulses, q
+            normal, impulses = lists.wall_normal, lists.wall_impulses
         else:
-            if not active[k]:
-                continue
-            i = lists.owner[k]
-            j = np.int64(lists.partners[k])
-            rj = radii[j]
             mu_s = friction[materials[i], materials[j], 0]
-            normal, impulses, slot = lists.normal, lists.impulses, k
+            normal, impulses = lists.normal, lists.impulses
         nx, ny, nz = normal[slot, 0], normal[slot, 1], normal[slot, 2]
         px, py, pz = impulses[slot, 0], impulses[slot, 1], impulses[slot, 2]
         pn = px * nx + py * ny + pz * nz
@@ -205,26 +201,14 @@ def _contact_work(velocities, angular_velocities, radii, lists, wall_velocity, a
     work = 0.0
     wall_force[:, :] = 0.0
     for k in range(lists.start[n] + lists.wall_start[n]):
-        wall = k >= lists.start[n]
-        q = k - lists.start[n]
+        on, wall, slot, i, j, w, rj, vx, vy, vz = contact_slot(
+            k, n, lists, radii, wall_velocity, active, wall_active)
+        if not on:
+            continue
         if wall:
-            if not wall_active[q]:
-                continue
-            i = lists.wall_owner[q]
-            w = lists.wall_ids[q]
-            j = -1
-            rj = 0.0
-            vx, vy, vz = wall_velocity[w, 0], wall_velocity[w, 1], wall_velocity[w, 2]
-            normal, impulses, start_speed, slot = lists.wall_normal, lists.wall_impulses, \
-                wall_free, q
+            normal, impulses, start_speed = lists.wall_normal, lists.wall_impulses, wall_free
         else:
-            if not active[k]:
-                continue
-            i = lists.owner[k]
-            j = np.int64(lists.partners[k])
-            rj = radii[j]
-            vx, vy, vz = 0.0, 0.0, 0.0
-            normal, impulses, start_speed, slot = lists.normal, lists.impulses, free, k
+            normal, impulses, start_speed = lists.normal, lists.impulses, free
         nx, ny, nz = normal[slot, 0], normal[slot, 1], normal[slot, 2]
         ux, uy, uz = contact_velocity(velocities, angular_velocities, i, j, radii[i], rj,
                                       nx, ny, nz, vx, vy, vz)
