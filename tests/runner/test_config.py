@@ -251,7 +251,7 @@ def test_an_older_integrator_section_loads_as_the_engine_section(small_config):
     both = {**old, "engine": {"integrator": "leap_frog"}}
     with pytest.raises(ConfigError, match="both given"):
         validate(both)
-    future = {**small_config, "engine": {"kind": "event_driven"}}
-    with pytest.raises(ConfigError, match="engine.kind = 'event_driven' is not an engine "
+    future = {**small_config, "engine": {"kind": "lattice_boltzmann"}}
+    with pytest.raises(ConfigError, match="engine.kind = 'lattice_boltzmann' is not an engine "
                        "of this version; engines: soft"):
         validate(future)

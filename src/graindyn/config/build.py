@@ -91,9 +91,11 @@ def engine(config: Config, state, made_protocol):
 
 def sample(config: Config, made_protocol, rng):
     """The grains of ``config`` drawn with ``rng`` and put into the protocol's container
-    (prepare.fill, with the protocol's insertion settings): a State."""
+    (prepare.fill, with the protocol's insertion settings, kept apart across the
+    config's periodic directions): a State."""
     radii = grain_radii(config, rng)
     positions, radii, velocities = fill(made_protocol.vessel, radii, rng,
+                                        periodic=config.walls.periodic,
                                         **config.protocol.fill_settings())
     material = config.material_index(config.grains.material)
     return State.create(positions, radii, config.materials[material].density,

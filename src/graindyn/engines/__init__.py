@@ -69,3 +69,7 @@ register(SOFT)
 from .contact_dynamics.settings import CONTACT_DYNAMICS  # noqa: E402
 
 register(CONTACT_DYNAMICS)
+
+from .event_driven.settings import EVENT_DRIVEN  # noqa: E402
+
+register(EVENT_DRIVEN)

@@ -56,20 +56,26 @@ class CylinderRegion:
 
 
 @kernel
-def _random_sequential(radii, lo, hi, cyl_radius, dim, seed, attempts):
+def _random_sequential(radii, lo, hi, cyl_radius, periodic, dim, seed, attempts):
     """Place grains (largest first) at uniform random non-overlapping positions; returns
-    positions and the number placed (< N when the region is too full)."""
+    positions and the number placed (< N when the region is too full).  Along an axis
+    with ``periodic[d]`` the region's extent is the period: positions are uniform over
+    it with no margin at the faces, separations are minimum images and the cell search
+    wraps around."""
     np.random.seed(seed)
     n = radii.size
     rmax = radii.max()
     cell = 2.0 * rmax
+    length = hi - lo
     counts = np.ones(3, np.int64)
     for d in range(dim):
-        counts[d] = max(1, int((hi[d] - lo[d]) / cell))
+        counts[d] = max(1, int(length[d] / cell))
     head = -np.ones(counts[0] * counts[1] * counts[2], np.int64)
     nxt = -np.ones(n, np.int64)
     pos = np.zeros((n, 3))
     center = 0.5 * (lo + hi)
+    near = np.zeros((3, 3), np.int64)  # the cells searched along each axis
+    n_near = np.ones(3, np.int64)
     for i in range(n):
         r = radii[i]
         placed = False
@@ -77,6 +83,9 @@ def _random_sequential(radii, lo, hi, cyl_radius, dim, seed, attempts):
             x = np.zeros(3)
             ok = True
             for d in range(dim):
+                if periodic[d]:
+                    x[d] = lo[d] + length[d] * np.random.random()
+                    continue
                 a = lo[d] + r
                 b = hi[d] - r
                 if b < a:
@@ -90,14 +99,29 @@ def _random_sequential(radii, lo, hi, cyl_radius, dim, seed, attempts):
             c = np.zeros(3, np.int64)
             for d in range(dim):
                 c[d] = min(counts[d] - 1, int((x[d] - lo[d]) / cell))
-            for ax in range(max(0, c[0] - 1), min(counts[0], c[0] + 2)):
-                for ay in range(max(0, c[1] - 1), min(counts[1], c[1] + 2)):
-                    for az in range(max(0, c[2] - 1), min(counts[2], c[2] + 2)):
-                        j = head[(ax * counts[1] + ay) * counts[2] + az]
+            for d in range(3):
+                # with one or two cells along an axis the clamped range holds them all
+                if periodic[d] and counts[d] >= 3:
+                    n_near[d] = 3
+                    for k in range(3):
+                        near[d, k] = (c[d] - 1 + k) % counts[d]
+                else:
+                    first = max(0, c[d] - 1)
+                    n_near[d] = min(counts[d], c[d] + 2) - first
+                    for k in range(n_near[d]):
+                        near[d, k] = first + k
+            for kx in range(n_near[0]):
+                for ky in range(n_near[1]):
+                    for kz in range(n_near[2]):
+                        j = head[(near[0, kx] * counts[1] + near[1, ky]) * counts[2]
+                                 + near[2, kz]]
                         while j >= 0 and ok:
                             d2 = 0.0
                             for d in range(3):
-                                d2 += (x[d] - pos[j, d]) ** 2
+                                s = x[d] - pos[j, d]
+                                if periodic[d]:
+                                    s -= length[d] * math.floor(s / length[d] + 0.5)
+                                d2 += s * s
                             if d2 < (r + radii[j]) ** 2:
                                 ok = False
                             j = nxt[j]
@@ -113,18 +137,31 @@ def _random_sequential(radii, lo, hi, cyl_radius, dim, seed, attempts):
     return pos, n
 
 
-def random_insertion(radii, region, rng, dim=3, attempts=20000):
+def random_insertion(radii, region, rng, dim=3, attempts=20000, periodic=()):
     """Random non-overlapping positions (N, 3) [m] for grains of ``radii`` in ``region``.
 
     Grains are placed largest first, so the returned order follows the sorted radii:
-    returns (positions, radii) both in that order.  Random sequential addition jams near
-    a packing fraction of 0.38 (3D) / 0.55 (2D): a ValueError says so when the region is
-    too small for the grains.
+    returns (positions, radii) both in that order.  ``periodic``: the axes (0..dim-1)
+    along which the region (a BoxRegion) spans the period of a periodic box; there the
+    positions fill [lo, hi) up to the faces and grains are kept apart across them
+    (minimum image), so that no pair overlaps through a periodic face.  Random
+    sequential addition jams near a packing fraction of 0.38 (3D) / 0.55 (2D): a
+    ValueError says so when the region is too small for the grains.
     """
     radii = np.sort(np.asarray(radii, dtype=np.float64))[::-1].copy()
     lo, hi, cyl = region.bounds(dim)
-    pos, placed = _random_sequential(radii, lo, hi, cyl, dim, int(rng.integers(2**31)),
-                                     attempts)
+    flag = np.zeros(3, np.int64)
+    for axis in periodic:
+        if axis not in range(dim) or cyl > 0:
+            raise ValueError(f"periodic = {tuple(periodic)}: periodic axes are among "
+                             f"0..{dim - 1} of a box region")
+        if hi[axis] - lo[axis] < 2.0 * radii.max(initial=0.0):
+            raise ValueError(f"periodic axis {axis}: the period {hi[axis] - lo[axis]:.4g} "
+                             f"m is shorter than the largest diameter {2 * radii.max():.4g}"
+                             " m (the grain would overlap its own image)")
+        flag[axis] = 1
+    pos, placed = _random_sequential(radii, lo, hi, cyl, flag, dim,
+                                     int(rng.integers(2**31)), attempts)
     if placed < radii.size:
         fraction = float(np.sum(4 / 3 * np.pi * radii**3 if dim == 3 else np.pi * radii**2)
                          / region.volume(dim))
@@ -161,6 +198,41 @@ def lattice_insertion(radii, region, rng, dim=3, gap=0.05, speed=0.0):
     vel = np.zeros((radii.size, 3))
     vel[:, :dim] = v
     return pos, vel
+
+
+def maxwellian_velocities(masses, temperature, rng, dim=3):
+    """Velocities (N, 3) [m/s] of grains of ``masses`` [kg] (N,) drawn from the
+    Maxwell-Boltzmann distribution of granular temperature ``temperature`` [J]: each of
+    the ``dim`` components of grain i normal with variance T / m_i (z zero in 2D).
+
+    The granular temperature is T = sum_i m_i |v_i|^2 / (dim N) [J], twice the mean
+    translational kinetic energy per degree of freedom (E_k = dim N T / 2).  The draw is
+    then made exact: the total momentum is removed (the mass-weighted mean velocity
+    subtracted, so that the sample does not drift) and the velocities are scaled so
+    that T is ``temperature`` exactly (removing the drift takes dim of the dim N degrees
+    of freedom; the scaling gives their share of energy back to the others).
+    ValueError for a negative or non-finite temperature, for masses that are empty or
+    not positive, and for one grain at T > 0 (at rest once its momentum is removed).
+    """
+    masses = np.asarray(masses, dtype=np.float64)
+    if dim not in (2, 3):
+        raise ValueError(f"dim = {dim}: 2 or 3")
+    if masses.ndim != 1 or masses.size == 0 or not np.all((masses > 0) & (masses < np.inf)):
+        raise ValueError("masses: a non-empty 1-D array of positive grain masses [kg]")
+    if not (math.isfinite(temperature) and temperature >= 0):
+        raise ValueError(f"temperature = {temperature}: the granular temperature [J] "
+                         "must be finite and >= 0")
+    velocities = np.zeros((masses.size, 3))
+    if temperature == 0:
+        return velocities
+    if masses.size < 2:
+        raise ValueError("masses: one grain is at rest once its momentum is removed; a "
+                         "temperature > 0 needs two grains or more")
+    v = rng.normal(size=(masses.size, dim)) * np.sqrt(temperature / masses)[:, None]
+    v -= masses @ v / masses.sum()
+    v *= math.sqrt(dim * masses.size * temperature / np.sum(masses[:, None] * v**2))
+    velocities[:, :dim] = v
+    return velocities
 
 
 def settle(sim, criterion=None, max_time=5.0, bottom_wall=None, cross_section=None,
@@ -215,18 +287,23 @@ def settle_report(sim, reached, criterion, bottom_wall=None, cross_section=None)
 
 
 def fill(vessel, radii, rng, insertion="random", packing_fraction=0.2, lattice_gap=0.05,
-         lattice_speed=0.0):
+         lattice_speed=0.0, periodic=()):
     """Grains of ``radii`` [m] put into ``vessel`` (protocols.base.Vessel) from its
     floor: "random" non-overlapping positions in a region of solid fraction
     ``packing_fraction``, in cell order (touching grains at nearby indices), or a loose
     "lattice" of gap ``lattice_gap`` (fraction of d_max) with random velocities of
-    ``lattice_speed`` [m/s].  Returns (positions (N, 3), radii (N,), velocities (N, 3)
-    or None)."""
+    ``lattice_speed`` [m/s].  ``periodic``: the periodic directions (axis, lo [m],
+    hi [m]) of the box; random insertion treats as periodic each axis whose [lo, hi]
+    the region spans exactly, so that no grains overlap through the periodic face (the
+    lattice keeps half a spacing from every face, so it needs nothing).  Returns
+    (positions (N, 3), radii (N,), velocities (N, 3) or None)."""
     dim = vessel.dim
     if insertion == "random":
         solid = float(np.sum(4 / 3 * np.pi * radii**3 if dim == 3 else np.pi * radii**2))
         region = vessel.region(solid / (packing_fraction * vessel.cross_section))
-        positions, radii = random_insertion(radii, region, rng, dim)
+        lo, hi, _ = region.bounds(dim)
+        axes = [axis for axis, a, b in periodic if lo[axis] == a and hi[axis] == b]
+        positions, radii = random_insertion(radii, region, rng, dim, periodic=axes)
         # inserted largest first, at random places: put them cell by cell (cells of
         # about the neighbour cutoff), so that touching grains sit at nearby indices
         order = cell_order(positions, 2.2 * radii.max())

@@ -1,0 +1,78 @@
+"""The bundles of arrays the event loop (events.py) is handed, by name (namedtuples of
+arrays: numba compiles them as tuples and reads fields by name).  N grains, W walls,
+M materials, C cells."""
+from typing import NamedTuple
+
+import numpy as np
+
+
+class Grains(NamedTuple):
+    """positions, velocities, angular_velocities (N, 3) [m], [m/s], [rad/s], each grain
+    at its own time local_time (N,) [s];  orientations (N, 4) unit quaternions;
+    radii, masses, inertias (N,) [m], [kg], [kg m^2];  materials (N,) int32;  fixed (N,)
+    int8 (held grains: infinite mass);  collisions (N,) int64, each grain's collision
+    counter;  last_collision (N,) [s] the time of its last collision (-inf before any);
+    gravity (3,) [m/s^2]."""
+    positions: np.ndarray
+    velocities: np.ndarray
+    angular_velocities: np.ndarray
+    orientations: np.ndarray
+    radii: np.ndarray
+    masses: np.ndarray
+    inertias: np.ndarray
+    materials: np.ndarray
+    fixed: np.ndarray
+    local_time: np.ndarray
+    collisions: np.ndarray
+    last_collision: np.ndarray
+    gravity: np.ndarray
+
+
+class Calendar(NamedTuple):
+    """Each grain's next event: time (N,) [s], kind (N,) (events.NONE ... RECHECK),
+    partner (N,) (grain, wall or cell face), count (N,) the partner grain's collision
+    counter when predicted;  heap, where (N,) the calendar (calendar.py)."""
+    time: np.ndarray
+    kind: np.ndarray
+    partner: np.ndarray
+    count: np.ndarray
+    heap: np.ndarray
+    where: np.ndarray
+
+
+class Cells(NamedTuple):
+    """The cell grid: lo (3,) [m] its lowest corner, size (3,) [m] the cells' sides,
+    count (3,) int64 cells per axis;  cell (N,) each grain's cell (x fastest);  head (C,)
+    the first grain of each cell, next, prev (N,) the doubly linked lists (-1: none)."""
+    lo: np.ndarray
+    size: np.ndarray
+    count: np.ndarray
+    cell: np.ndarray
+    head: np.ndarray
+    next: np.ndarray
+    prev: np.ndarray
+
+
+class WallBundle(NamedTuple):
+    """The arrays of core.walls.Walls the loop reads (kind, geometry, base, motion_kind,
+    motion, material; a wall is at base + its displacement, flight.wall_displacement) and
+    impulse (W, 3) [N s], the impulse of the grains on each wall since the last pause."""
+    kind: np.ndarray
+    geometry: np.ndarray
+    base: np.ndarray
+    motion_kind: np.ndarray
+    motion: np.ndarray
+    material: np.ndarray
+    impulse: np.ndarray
+
+
+class PeriodicBox(NamedTuple):
+    """flag (3,) int64, lo (3,) [m], length (3,) [m] of the periodic directions."""
+    flag: np.ndarray
+    lo: np.ndarray
+    length: np.ndarray
+
+
+class Tables(NamedTuple):
+    """restitution (M, M) [-]: the normal restitution e_n of each pair of materials."""
+    restitution: np.ndarray

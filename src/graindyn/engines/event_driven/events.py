@@ -1,0 +1,456 @@
+"""The event loop: predict each grain's next event, take the earliest from the calendar,
+carry it out, predict again the grains it changed (Pérez Sec. 2's "typical
+calculation"), all compiled, with no Python per event.
+
+Events of a grain (``Calendar.kind``): PAIR (a collision with grain ``partner``), WALL
+(with wall ``partner``), CELL (it leaves its cell through face ``partner`` = 2 axis +
+(1 upper, 0 lower)), RECHECK (a wall search to take up again, flight.wall_time), NONE
+(nothing ahead: time inf).  Grains are advanced lazily: each has its own clock
+``Grains.local_time`` and is brought to the present only when an event involves it,
+or at a synchronisation (``synchronise``) where the engine pauses.
+
+Cells: a grid of cells at least a largest diameter wide, so a grain can touch only
+grains of its own and the adjacent cells; leaving a cell is an event, after which the
+grain's partners are looked for around its new cell (Rapaport).  Along a periodic
+axis the grid spans the period and a grain that leaves the last cell enters the first
+one, its coordinate shifted by the period; along the others the outermost cells reach
+to infinity.
+
+Stale events are recognised by collision counters (calendar.py).  A cascade of events
+at one instant that does not end (inelastic collapse: the collisions of a cluster
+pile up until their times no longer differ in floating point) stops the loop with
+status COLLAPSE instead of running on forever.
+"""
+import math
+
+import numpy as np
+
+from ..._jit import kernel
+from ..soft.integrators.rotation import rotate_quaternion
+from . import flight
+from .calendar import build_heap, reschedule
+from .collision import collision_impulse, contact_velocity, restitution_now
+
+NONE, PAIR, WALL, CELL, RECHECK = 0, 1, 2, 3, 4
+# clock (float64) slots
+(TIME, GX, GY, GZ, DISS_N, DISS_T, WALL_WORK, VIRIAL, TANGENTIAL, COLLAPSE_SPEED,
+ CONTACT_DURATION, TOLERANCE, NCLOCK) = range(13)
+# counters (int64) slots
+(EVENTS, PAIR_COLLISIONS, WALL_COLLISIONS, CROSSINGS, RECHECKS, STALE, COLLAPSE_MODEL,
+ SAME_TIME, NCOUNTERS) = range(9)
+# loop status
+DONE, COLLAPSED = 0, 1
+SAME_TIME_LIMIT = 100_000        # events at one instant that make a collapse
+
+
+@kernel
+def _advance(g, i, t):
+    """Bring grain i from its own time to time t [s] by free flight (parabola, constant
+    spin, the orientation turned exactly by w dt)."""
+    dt = t - g.local_time[i]
+    if dt != 0.0 and g.fixed[i] == 0:
+        for d in range(3):
+            g.positions[i, d] += dt * (g.velocities[i, d] + 0.5 * dt * g.gravity[d])
+            g.velocities[i, d] += dt * g.gravity[d]
+        q = g.orientations[i]
+        w = g.angular_velocities[i]
+        q[0], q[1], q[2], q[3] = rotate_quaternion(q[0], q[1], q[2], q[3], w[0] * dt,
+                                                   w[1] * dt, w[2] * dt)
+    g.local_time[i] = t
+
+
+@kernel
+def _wrap(box, k, d):
+    """d [m] along axis k wrapped to its minimum image."""
+    if box.flag[k]:
+        return d - box.length[k] * math.floor(d / box.length[k] + 0.5)
+    return d
+
+
+@kernel
+def _separation(g, box, i, j, t):
+    """r_i - r_j [m] (minimum image) and v_i - v_j [m/s] at time t, grain i being at t:
+    (dx, dy, dz, ux, uy, uz)."""
+    dt = t - g.local_time[j]
+    m = 1.0 if g.fixed[j] == 0 else 0.0
+    p = g.positions
+    v = g.velocities
+    gx = g.gravity[0]
+    gy = g.gravity[1]
+    gz = g.gravity[2]
+    vx = m * (v[j, 0] + dt * gx)
+    vy = m * (v[j, 1] + dt * gy)
+    vz = m * (v[j, 2] + dt * gz)
+    dx = p[i, 0] - p[j, 0] - m * dt * (v[j, 0] + 0.5 * dt * gx)
+    dy = p[i, 1] - p[j, 1] - m * dt * (v[j, 1] + 0.5 * dt * gy)
+    dz = p[i, 2] - p[j, 2] - m * dt * (v[j, 2] + 0.5 * dt * gz)
+    return (_wrap(box, 0, dx), _wrap(box, 1, dy), _wrap(box, 2, dz), v[i, 0] - vx,
+            v[i, 1] - vy, v[i, 2] - vz)
+
+
+@kernel
+def _cell_range(cells, box, c, axis):
+    """The cells next to cell c along ``axis`` (c included), without repeats: (first,
+    count), the cells being (first + k) mod n for k < count."""
+    n = cells.count[axis]
+    if box.flag[axis]:
+        if n >= 3:
+            return c - 1 + n, 3
+        return 0, n
+    first = max(c - 1, 0)
+    return first, min(c + 1, n - 1) - first + 1
+
+
+@kernel
+def _cell_bounds(cells, box, c, axis):
+    """Lower and upper bound [m] of cell c along ``axis`` (infinite at the outer faces
+    of a non-periodic axis)."""
+    lo = cells.lo[axis] + c * cells.size[axis]
+    hi = lo + cells.size[axis]
+    if not box.flag[axis]:
+        if c == 0:
+            lo = -math.inf
+        if c == cells.count[axis] - 1:
+            hi = math.inf
+    return lo, hi
+
+
+@kernel
+def _unlink(cells, i):
+    c = cells.cell[i]
+    if cells.prev[i] >= 0:
+        cells.next[cells.prev[i]] = cells.next[i]
+    else:
+        cells.head[c] = cells.next[i]
+    if cells.next[i] >= 0:
+        cells.prev[cells.next[i]] = cells.prev[i]
+
+
+@kernel
+def _link(cells, i, c):
+    cells.cell[i] = c
+    cells.prev[i] = -1
+    cells.next[i] = cells.head[c]
+    if cells.head[c] >= 0:
+        cells.prev[cells.head[c]] = i
+    cells.head[c] = i
+
+
+@kernel
+def _schedule(cal, i, t, kind, partner, count):
+    cal.time[i] = t
+    cal.kind[i] = kind
+    cal.partner[i] = partner
+    cal.count[i] = count
+    reschedule(cal.heap, cal.where, cal.time, i)
+
+
+@kernel
+def predict(g, cal, cells, walls, box, clock, i, now):
+    """Find grain i's next event from ``now`` [s] (i must be at ``now``) and put it in
+    the calendar: the earliest of its cell crossing, its collisions with the grains of
+    the adjacent cells and its wall collisions."""
+    if g.fixed[i] != 0:
+        _schedule(cal, i, math.inf, NONE, -1, 0)
+        return
+    best = math.inf
+    kind = NONE
+    partner = -1
+    count = 0
+    nx_ = cells.count[0]
+    ny_ = cells.count[1]
+    c = cells.cell[i]
+    cz = c // (nx_ * ny_)
+    cy = (c // nx_) % ny_
+    cx = c % nx_
+    coords = (cx, cy, cz)
+    for axis in range(3):
+        lo, hi = _cell_bounds(cells, box, coords[axis], axis)
+        t, up = flight.boundary_time(g.positions[i, axis], g.velocities[i, axis],
+                                     g.gravity[axis], lo, hi)
+        if t < best:
+            best = t
+            kind = CELL
+            partner = 2 * axis + up
+    fx, nx = _cell_range(cells, box, cx, 0)
+    fy, ny = _cell_range(cells, box, cy, 1)
+    fz, nz = _cell_range(cells, box, cz, 2)
+    for a in range(nz):
+        z = (fz + a) % cells.count[2]
+        for b in range(ny):
+            y = (fy + b) % ny_
+            for e in range(nx):
+                x = (fx + e) % nx_
+                j = cells.head[(z * ny_ + y) * nx_ + x]
+                while j >= 0:
+                    if j != i:
+                        dx, dy, dz, ux, uy, uz = _separation(g, box, i, j, now)
+                        t = flight.pair_time(dx, dy, dz, ux, uy, uz,
+                                             g.radii[i] + g.radii[j])
+                        if t < best:
+                            best = t
+                            kind = PAIR
+                            partner = j
+                            count = g.collisions[j]
+                    j = cells.next[j]
+    tolerance = clock[TOLERANCE] * g.radii[i]
+    for w in range(walls.kind.size):
+        t, found = flight.wall_time(
+            walls.kind, walls.geometry, walls.base, walls.motion_kind, walls.motion, w,
+            now, g.positions[i, 0], g.positions[i, 1], g.positions[i, 2],
+            g.velocities[i, 0], g.velocities[i, 1], g.velocities[i, 2], g.gravity[0],
+            g.gravity[1], g.gravity[2], g.radii[i], tolerance, best)
+        if t < best:
+            best = t
+            kind = WALL if found == flight.COLLIDE else RECHECK
+            partner = w
+    _schedule(cal, i, now + best, kind, partner, count)
+
+
+@kernel
+def _since(g, i, now):
+    return now - g.last_collision[i]
+
+
+@kernel
+def _pair_collision(g, tables, clock, counters, box, i, j, now):
+    """Carry out the collision of grains i and j at ``now`` (both there): Pérez Eq. 1-10
+    through collision.collision_impulse, energy and virial bookkeeping."""
+    dx, dy, dz, ux, uy, uz = _separation(g, box, i, j, now)
+    size = math.sqrt(dx * dx + dy * dy + dz * dz)
+    nx = -dx / size              # from a = i to b = j (Pérez Eq. 1)
+    ny = -dy / size
+    nz = -dz / size
+    ri = g.radii[i]
+    rj = g.radii[j]
+    wi = g.angular_velocities[i]
+    wj = g.angular_velocities[j]
+    vx, vy, vz = contact_velocity(nx, ny, nz, ux, uy, uz, wi[0], wi[1], wi[2], ri,
+                                  0.0, 0.0, 0.0, wj[0], wj[1], wj[2], rj)
+    free_i = 1.0 if g.fixed[i] == 0 else 0.0
+    free_j = 1.0 if g.fixed[j] == 0 else 0.0
+    inv_mi = free_i / g.masses[i]
+    inv_mj = free_j / g.masses[j]
+    inv_ii = free_i / g.inertias[i]
+    inv_ij = free_j / g.inertias[j]
+    approach = vx * nx + vy * ny + vz * nz
+    e_n = restitution_now(tables.restitution[g.materials[i], g.materials[j]],
+                          counters[COLLAPSE_MODEL], approach, clock[COLLAPSE_SPEED],
+                          _since(g, i, now), _since(g, j, now), clock[CONTACT_DURATION])
+    jx, jy, jz, dn, ds = collision_impulse(nx, ny, nz, vx, vy, vz, inv_mi + inv_mj,
+                                           ri * ri * inv_ii + rj * rj * inv_ij, e_n,
+                                           clock[TANGENTIAL])
+    impulse = (jx, jy, jz)
+    torque = (ny * jz - nz * jy, nz * jx - nx * jz, nx * jy - ny * jx)    # n x J
+    for k in range(3):
+        g.velocities[i, k] += impulse[k] * inv_mi
+        g.velocities[j, k] -= impulse[k] * inv_mj
+        g.angular_velocities[i, k] += ri * torque[k] * inv_ii
+        g.angular_velocities[j, k] += rj * torque[k] * inv_ij
+    clock[DISS_N] += dn
+    clock[DISS_T] += ds
+    clock[VIRIAL] += dx * jx + dy * jy + dz * jz
+    g.collisions[i] += 1
+    g.collisions[j] += 1
+    g.last_collision[i] = now
+    g.last_collision[j] = now
+    counters[PAIR_COLLISIONS] += 1
+
+
+@kernel
+def _wall_collision(g, walls, tables, clock, counters, i, w, now):
+    """Carry out the collision of grain i with wall w at ``now`` (the wall as a grain of
+    infinite mass moving at its velocity then): Pérez Eq. 1-10, the wall's impulse and
+    the work it does on the grain."""
+    x = g.positions[i]
+    gap, mx, my, mz, wx, wy, wz = flight.wall_gap(
+        walls.kind, walls.geometry, walls.base, walls.motion_kind, walls.motion, w, now,
+        x[0], x[1], x[2], g.radii[i])
+    nx = -mx                     # from the grain (a) to the wall (b)
+    ny = -my
+    nz = -mz
+    v = g.velocities[i]
+    s = g.angular_velocities[i]
+    r = g.radii[i]
+    vx, vy, vz = contact_velocity(nx, ny, nz, v[0] - wx, v[1] - wy, v[2] - wz, s[0], s[1],
+                                  s[2], r, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    approach = vx * nx + vy * ny + vz * nz
+    e_n = restitution_now(tables.restitution[g.materials[i], walls.material[w]],
+                          counters[COLLAPSE_MODEL], approach, clock[COLLAPSE_SPEED],
+                          _since(g, i, now), math.inf, clock[CONTACT_DURATION])
+    inv_m = 1.0 / g.masses[i]
+    inv_i = 1.0 / g.inertias[i]
+    jx, jy, jz, dn, ds = collision_impulse(nx, ny, nz, vx, vy, vz, inv_m, r * r * inv_i,
+                                           e_n, clock[TANGENTIAL])
+    before = 0.5 * (g.masses[i] * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+                    + g.inertias[i] * (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]))
+    impulse = (jx, jy, jz)
+    torque = (ny * jz - nz * jy, nz * jx - nx * jz, nx * jy - ny * jx)
+    for k in range(3):
+        v[k] += impulse[k] * inv_m
+        s[k] += r * torque[k] * inv_i
+        walls.impulse[w, k] -= impulse[k]
+    after = 0.5 * (g.masses[i] * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+                   + g.inertias[i] * (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]))
+    clock[DISS_N] += dn
+    clock[DISS_T] += ds
+    clock[WALL_WORK] += after - before + dn + ds
+    g.collisions[i] += 1
+    g.last_collision[i] = now
+    counters[WALL_COLLISIONS] += 1
+
+
+@kernel
+def _cross(g, cells, box, i, face):
+    """Move grain i into the cell beyond ``face`` of its own, shifting its coordinate by
+    the period when it wraps around a periodic axis."""
+    axis = face // 2
+    stride = 1
+    for a in range(axis):
+        stride *= cells.count[a]
+    n = cells.count[axis]
+    c = cells.cell[i]
+    k = (c // stride) % n
+    if face % 2 == 1:
+        if k == n - 1:
+            g.positions[i, axis] -= box.length[axis]
+            c -= (n - 1) * stride
+        else:
+            c += stride
+    elif k == 0:
+        g.positions[i, axis] += box.length[axis]
+        c += (n - 1) * stride
+    else:
+        c -= stride
+    _unlink(cells, i)
+    _link(cells, i, c)
+
+
+@kernel
+def run_events(g, cal, cells, walls, box, tables, clock, counters, end):
+    """Carry out every event before ``end`` [s] (simulated time); returns DONE, or
+    COLLAPSED when SAME_TIME_LIMIT events in a row fall at one instant.  The grains are
+    left at their own times: ``synchronise`` brings them to ``end``."""
+    last = -math.inf
+    while True:
+        i = cal.heap[0]
+        now = cal.time[i]
+        if not now < end:
+            return DONE
+        if now == last:
+            counters[SAME_TIME] += 1
+            if counters[SAME_TIME] > SAME_TIME_LIMIT:
+                return COLLAPSED
+        else:
+            counters[SAME_TIME] = 0
+            last = now
+        clock[TIME] = now
+        counters[EVENTS] += 1
+        kind = cal.kind[i]
+        _advance(g, i, now)
+        if kind == PAIR:
+            j = cal.partner[i]
+            if g.collisions[j] != cal.count[i]:
+                counters[STALE] += 1
+                predict(g, cal, cells, walls, box, clock, i, now)
+                continue
+            _advance(g, j, now)
+            _pair_collision(g, tables, clock, counters, box, i, j, now)
+            predict(g, cal, cells, walls, box, clock, i, now)
+            predict(g, cal, cells, walls, box, clock, j, now)
+        elif kind == WALL:
+            _wall_collision(g, walls, tables, clock, counters, i, cal.partner[i], now)
+            predict(g, cal, cells, walls, box, clock, i, now)
+        elif kind == CELL:
+            counters[CROSSINGS] += 1
+            _cross(g, cells, box, i, cal.partner[i])
+            predict(g, cal, cells, walls, box, clock, i, now)
+        else:
+            counters[RECHECKS] += 1
+            predict(g, cal, cells, walls, box, clock, i, now)
+
+
+@kernel
+def synchronise(g, t):
+    """Bring every grain to time t [s] (free flight)."""
+    for i in range(g.radii.size):
+        _advance(g, i, t)
+
+
+@kernel
+def bin_grains(g, cells, box):
+    """Put every grain into its cell (coordinates along periodic axes wrapped into the
+    period first)."""
+    cells.head[:] = -1
+    for i in range(g.radii.size):
+        c = 0
+        stride = 1
+        for axis in range(3):
+            x = g.positions[i, axis]
+            if box.flag[axis]:
+                x -= box.length[axis] * math.floor((x - box.lo[axis]) / box.length[axis])
+                g.positions[i, axis] = x
+            k = int(math.floor((x - cells.lo[axis]) / cells.size[axis]))
+            k = min(max(k, 0), cells.count[axis] - 1)
+            c += k * stride
+            stride *= cells.count[axis]
+        _link(cells, i, c)
+
+
+@kernel
+def _close_pairs(g, cells, box, slack, out_i, out_j, out_gap):
+    """Walk the pairs i < j of adjacent cells whose gap |r_i - r_j| - R_i - R_j [m] is at
+    most ``slack`` [m] and write the first out_i.size of them; returns how many."""
+    found = 0
+    nx_ = cells.count[0]
+    ny_ = cells.count[1]
+    for i in range(g.radii.size):
+        c = cells.cell[i]
+        fx, nx = _cell_range(cells, box, c % nx_, 0)
+        fy, ny = _cell_range(cells, box, (c // nx_) % ny_, 1)
+        fz, nz = _cell_range(cells, box, c // (nx_ * ny_), 2)
+        for a in range(nz):
+            z = (fz + a) % cells.count[2]
+            for b in range(ny):
+                y = (fy + b) % ny_
+                for e in range(nx):
+                    x = (fx + e) % nx_
+                    j = cells.head[(z * ny_ + y) * nx_ + x]
+                    while j >= 0:
+                        if j > i:
+                            dx, dy, dz, ux, uy, uz = _separation(g, box, i, j,
+                                                                 g.local_time[i])
+                            gap = math.sqrt(dx * dx + dy * dy + dz * dz) \
+                                - g.radii[i] - g.radii[j]
+                            if gap <= slack:
+                                if found < out_i.size:
+                                    out_i[found] = i
+                                    out_j[found] = j
+                                    out_gap[found] = gap
+                                found += 1
+                        j = cells.next[j]
+    return found
+
+
+def close_pairs(g, cells, box, slack):
+    """The pairs i < j whose gap is at most ``slack`` [m] (grains binned, all at one
+    time): (i, j, gap) arrays."""
+    empty = np.zeros(0, np.int64)
+    count = _close_pairs(g, cells, box, slack, empty, empty, np.zeros(0))
+    i = np.zeros(count, np.int64)
+    j = np.zeros(count, np.int64)
+    gap = np.zeros(count)
+    _close_pairs(g, cells, box, slack, i, j, gap)
+    return i, j, gap
+
+
+@kernel
+def predict_all(g, cal, cells, walls, box, clock):
+    """Predict every grain's next event from the present (all grains at clock[TIME]) and
+    build the calendar."""
+    now = clock[TIME]
+    for i in range(g.radii.size):
+        cal.time[i] = math.inf
+    build_heap(cal.heap, cal.where, cal.time)
+    for i in range(g.radii.size):
+        predict(g, cal, cells, walls, box, clock, i, now)
