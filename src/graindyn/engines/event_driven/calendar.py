@@ -12,15 +12,15 @@ Arrays: heap (N,) grain ids in heap order, where (N,) each grain's place in the 
 time (N,) [s] each grain's event time (the key).  Ties are broken by the grain index, so
 the order of events is the same on every machine.
 """
-from ..._jit import kernel
+from ..._jit import driver
 
 
-@kernel
+@driver
 def _earlier(time, a, b):
     return time[a] < time[b] or (time[a] == time[b] and a < b)
 
 
-@kernel
+@driver
 def sift_up(heap, where, time, k):
     """Move the entry at heap place k up to where its key belongs."""
     grain = heap[k]
@@ -36,7 +36,7 @@ def sift_up(heap, where, time, k):
     where[grain] = k
 
 
-@kernel
+@driver
 def sift_down(heap, where, time, k):
     """Move the entry at heap place k down to where its key belongs."""
     n = heap.size
@@ -57,7 +57,7 @@ def sift_down(heap, where, time, k):
     where[grain] = k
 
 
-@kernel
+@driver
 def reschedule(heap, where, time, grain):
     """Restore the heap order after ``time[grain]`` changed."""
     k = where[grain]
@@ -67,7 +67,7 @@ def reschedule(heap, where, time, grain):
         sift_down(heap, where, time, k)
 
 
-@kernel
+@driver
 def build_heap(heap, where, time):
     """Order all grains by ``time`` (Floyd's bottom-up construction, O(N))."""
     n = heap.size

@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from ..._jit import kernel
+from ..._jit import driver
 from ..soft.integrators.rotation import rotate_quaternion
 from . import flight
 from .calendar import build_heap, reschedule
@@ -43,7 +43,7 @@ DONE, COLLAPSED = 0, 1
 SAME_TIME_LIMIT = 100_000        # events at one instant that make a collapse
 
 
-@kernel
+@driver
 def _advance(g, i, t):
     """Bring grain i from its own time to time t [s] by free flight (parabola, constant
     spin, the orientation turned exactly by w dt)."""
@@ -59,7 +59,7 @@ def _advance(g, i, t):
     g.local_time[i] = t
 
 
-@kernel
+@driver
 def _wrap(box, k, d):
     """d [m] along axis k wrapped to its minimum image."""
     if box.flag[k]:
@@ -67,7 +67,7 @@ def _wrap(box, k, d):
     return d
 
 
-@kernel
+@driver
 def _separation(g, box, i, j, t):
     """r_i - r_j [m] (minimum image) and v_i - v_j [m/s] at time t, grain i being at t:
     (dx, dy, dz, ux, uy, uz)."""
@@ -88,7 +88,7 @@ def _separation(g, box, i, j, t):
             v[i, 1] - vy, v[i, 2] - vz)
 
 
-@kernel
+@driver
 def _cell_range(cells, box, c, axis):
     """The cells next to cell c along ``axis`` (c included), without repeats: (first,
     count), the cells being (first + k) mod n for k < count."""
@@ -101,7 +101,7 @@ def _cell_range(cells, box, c, axis):
     return first, min(c + 1, n - 1) - first + 1
 
 
-@kernel
+@driver
 def _cell_bounds(cells, box, c, axis):
     """Lower and upper bound [m] of cell c along ``axis`` (infinite at the outer faces
     of a non-periodic axis)."""
@@ -115,7 +115,7 @@ def _cell_bounds(cells, box, c, axis):
     return lo, hi
 
 
-@kernel
+@driver
 def _unlink(cells, i):
     c = cells.cell[i]
     if cells.prev[i] >= 0:
@@ -126,7 +126,7 @@ def _unlink(cells, i):
         cells.prev[cells.next[i]] = cells.prev[i]
 
 
-@kernel
+@driver
 def _link(cells, i, c):
     cells.cell[i] = c
     cells.prev[i] = -1
@@ -136,7 +136,7 @@ def _link(cells, i, c):
     cells.head[c] = i
 
 
-@kernel
+@driver
 def _schedule(cal, i, t, kind, partner, count):
     cal.time[i] = t
     cal.kind[i] = kind
@@ -145,7 +145,7 @@ def _schedule(cal, i, t, kind, partner, count):
     reschedule(cal.heap, cal.where, cal.time, i)
 
 
-@kernel
+@driver
 def predict(g, cal, cells, walls, box, clock, i, now):
     """Find grain i's next event from ``now`` [s] (i must be at ``now``) and put it in
     the calendar: the earliest of its cell crossing, its collisions with the grains of
@@ -207,12 +207,12 @@ def predict(g, cal, cells, walls, box, clock, i, now):
     _schedule(cal, i, now + best, kind, partner, count)
 
 
-@kernel
+@driver
 def _since(g, i, now):
     return now - g.last_collision[i]
 
 
-@kernel
+@driver
 def _pair_collision(g, tables, clock, counters, box, i, j, now):
     """Carry out the collision of grains i and j at ``now`` (both there): Pérez Eq. 1-10
     through collision.collision_impulse, energy and virial bookkeeping."""
@@ -257,7 +257,7 @@ def _pair_collision(g, tables, clock, counters, box, i, j, now):
     counters[PAIR_COLLISIONS] += 1
 
 
-@kernel
+@driver
 def _wall_collision(g, walls, tables, clock, counters, i, w, now):
     """Carry out the collision of grain i with wall w at ``now`` (the wall as a grain of
     infinite mass moving at its velocity then): Pérez Eq. 1-10, the wall's impulse and
@@ -300,7 +300,7 @@ def _wall_collision(g, walls, tables, clock, counters, i, w, now):
     counters[WALL_COLLISIONS] += 1
 
 
-@kernel
+@driver
 def _cross(g, cells, box, i, face):
     """Move grain i into the cell beyond ``face`` of its own, shifting its coordinate by
     the period when it wraps around a periodic axis."""
@@ -326,7 +326,7 @@ def _cross(g, cells, box, i, face):
     _link(cells, i, c)
 
 
-@kernel
+@driver
 def run_events(g, cal, cells, walls, box, tables, clock, counters, end):
     """Carry out every event before ``end`` [s] (simulated time); returns DONE, or
     COLLAPSED when SAME_TIME_LIMIT events in a row fall at one instant.  The grains are
@@ -370,14 +370,14 @@ def run_events(g, cal, cells, walls, box, tables, clock, counters, end):
             predict(g, cal, cells, walls, box, clock, i, now)
 
 
-@kernel
+@driver
 def synchronise(g, t):
     """Bring every grain to time t [s] (free flight)."""
     for i in range(g.radii.size):
         _advance(g, i, t)
 
 
-@kernel
+@driver
 def bin_grains(g, cells, box):
     """Put every grain into its cell (coordinates along periodic axes wrapped into the
     period first)."""
@@ -397,7 +397,7 @@ def bin_grains(g, cells, box):
         _link(cells, i, c)
 
 
-@kernel
+@driver
 def _close_pairs(g, cells, box, slack, out_i, out_j, out_gap):
     """Walk the pairs i < j of adjacent cells whose gap |r_i - r_j| - R_i - R_j [m] is at
     most ``slack`` [m] and write the first out_i.size of them; returns how many."""
@@ -444,7 +444,7 @@ def close_pairs(g, cells, box, slack):
     return i, j, gap
 
 
-@kernel
+@driver
 def predict_all(g, cal, cells, walls, box, clock):
     """Predict every grain's next event from the present (all grains at clock[TIME]) and
     build the calendar."""

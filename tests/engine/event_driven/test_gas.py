@@ -1,0 +1,76 @@
+"""An elastic hard-sphere (hard-disk) gas in a periodic box: conservation to round-off,
+and the equilibrium pressure and collision rate of the equations of state of Carnahan
+and Starling (3D) and Henderson (2D) with Enskog's collision rate."""
+import numpy as np
+import pytest
+
+import graindyn as gd
+from graindyn.analysis import gas
+from graindyn.core.walls import Periodic
+from graindyn.engines.event_driven.engine import EventDriven
+from graindyn.protocols.prepare import BoxRegion, maxwellian_velocities, random_insertion
+
+R = 5e-4            # grain radius [m]
+TEMPERATURE = 1e-9  # [J]
+
+
+def periodic_gas(n, phi, dim, seed=1, restitution=None, **options):
+    """n grains of radius R at packing fraction phi in a periodic cube (square), velocities
+    Maxwellian at TEMPERATURE with zero momentum, no gravity."""
+    rng = np.random.default_rng(seed)
+    solid = n * (4 / 3 * np.pi * R**3 if dim == 3 else np.pi * R**2)
+    side = (solid / phi) ** (1 / dim)
+    positions, radii = random_insertion(np.full(n, R), BoxRegion((0.0,) * dim, (side,) * dim),
+                                        rng, dim, periodic=range(dim))
+    state = gd.State.create(positions, radii, 2650.0, dim=dim)
+    state.velocities[:] = maxwellian_velocities(state.masses, TEMPERATURE, rng, dim)
+    engine = EventDriven(state, [gd.Material(restitution=restitution)],
+                         periodic=[Periodic(a, 0.0, side) for a in range(dim)],
+                         gravity=(0.0, 0.0, 0.0), **options)
+    return engine, side**dim
+
+
+@pytest.mark.parametrize("dim", [3, 2])
+def test_an_elastic_gas_conserves_energy_and_momentum_to_round_off(dim):
+    """About 1e5 collisions of a dense elastic gas (phi 0.3, 0.45): the kinetic energy
+    stays within 1e-12 of its start and the total momentum within 1e-13 of the momentum
+    scale N m sqrt(T/m); nothing is dissipated, and no pair overlaps."""
+    phi = 0.3 if dim == 3 else 0.45
+    engine, volume = periodic_gas(400, phi, dim)
+    s = engine.state
+    before = engine.energies()["kinetic"]
+    scale = s.n * np.sqrt(TEMPERATURE * s.masses[0])
+    per_grain = gas.enskog_collision_rate(s.n / volume, 2 * R, TEMPERATURE, s.masses[0],
+                                          phi, dim)
+    for _ in range(10):                        # 500 collisions per grain, ten pauses
+        engine.run(time=100 / per_grain)
+    assert engine.energies()["kinetic"] == pytest.approx(before, rel=1e-12)
+    assert np.abs(s.masses @ s.velocities).max() < 1e-13 * scale
+    energies = engine.energies()
+    assert energies["dissipated_normal"] == energies["dissipated_tangential"] == 0.0
+    assert engine.contacts().i.size == 0 or np.all(engine.contacts().normal_force == 0)
+
+
+@pytest.mark.parametrize("dim, phi", [(3, 0.1), (3, 0.3), (2, 0.2), (2, 0.45)])
+def test_the_pressure_and_collision_rate_of_an_elastic_gas(dim, phi):
+    """The compressibility factor Z = P V / (N T) from the collision virial within 1.5 %
+    of Carnahan-Starling (3D) or Henderson (2D), and the collision rate within 2 % of
+    Enskog's with the same g(sigma), over about 100 collisions per grain of 1000 grains
+    after 20 per grain to equilibrate (the durations sized by Enskog's rate)."""
+    engine, volume = periodic_gas(1000, phi, dim, seed=2)
+    s = engine.state
+    per_grain = gas.enskog_collision_rate(s.n / volume, 2 * R, TEMPERATURE, s.masses[0],
+                                          phi, dim)
+    engine.run(time=20 / per_grain)
+    t0, w0, c0 = engine.time, engine.virial, engine.collisions
+    temperature = gas.granular_temperature(s)[0]
+    engine.run(time=100 / per_grain)
+    duration = engine.time - t0
+    assert gas.granular_temperature(s)[0] == pytest.approx(temperature, rel=1e-9)
+    pressure = gas.collision_pressure(s.n, temperature, engine.virial - w0, duration,
+                                      volume, dim)
+    z = pressure * volume / (s.n * temperature)
+    assert z == pytest.approx(gas.compressibility(phi, dim), rel=0.015)
+    rate = 2 * (engine.collisions - c0) / (s.n * duration)
+    assert rate == pytest.approx(gas.enskog_collision_rate(
+        s.n / volume, 2 * R, temperature, s.masses[0], phi, dim), rel=0.02)
