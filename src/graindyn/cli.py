@@ -88,13 +88,16 @@ def validate(config: Annotated[pathlib.Path, typer.Argument(help="TOML config to
     except ConfigError as err:
         _fail(err)
     c = cfg.contact
+    if report["critical_time_s"] is None:
+        stepping = f"engine {cfg.engine.kind}: {report['criterion']}"
+    else:
+        dt = getattr(cfg.engine, "dt", None)
+        stepping = (f"{report['criterion']} {report['critical_time_s']:.4g} s, suggested dt "
+                    f"{report['suggested_dt_s']:.4g} s"
+                    + (f", dt {dt:.4g} s = {report['fraction']:.3f} of it" if dt else ""))
     typer.echo(f"{config}: ok\n  {cfg.grains.count} grains in {cfg.run.dim}D, protocol "
                f"{cfg.protocol.kind}\n  contact: {c.normal} + {c.damping} + {c.tangential} "
-               f"+ rolling {c.rolling} + twisting {c.twisting}\n  {report['criterion']} "
-               f"{report['critical_time_s']:.4g} s, suggested dt "
-               f"{report['suggested_dt_s']:.4g} s"
-               + (f", dt {cfg.engine.dt:.4g} s = {report['fraction']:.3f} of it"
-                  if cfg.engine.dt else ""))
+               f"+ rolling {c.rolling} + twisting {c.twisting}\n  {stepping}")
 
 
 @app.command()

@@ -160,7 +160,7 @@ class _Driver:
         self.write_all(engine)
         seconds = time.perf_counter() - wall
         results = protocol.results(engine, self.state["states"])
-        results.update({"dt_s": engine.dt, "steps_this_session": engine.step - start_step,
+        results.update({"dt_s": getattr(engine, "dt", None), "steps_this_session": engine.step - start_step,
                         "wall_time_this_session_s": seconds,
                         "particle_steps_per_s": engine.state.n * (engine.step - start_step)
                         / max(seconds, 1e-9), "threads": numba.get_num_threads()})
@@ -192,6 +192,18 @@ def _threads(requested, grains):
         raise ConfigError(str(err)) from None
 
 
+def _stepping(engine, report):
+    """How the engine advances time, for the log: its time step against the criterion of
+    the time-step ``report`` (None: the step alone), or that it has none."""
+    dt = getattr(engine, "dt", None)
+    if dt is None:
+        return "no time step (event-driven)"
+    if report is None or not report.get("critical_time_s"):
+        return f"dt = {dt:.4g} s"
+    return (f"dt = {dt:.4g} s ({dt / report['critical_time_s']:.3f} of the "
+            f"{report['criterion']})")
+
+
 def _threading_line(threads, why):
     notice = f"; {threading_policy.NOTICE}" if threading_policy.NOTICE else ""
     return f"{threads} threads ({why}), threading layer {threading_policy.layer()}{notice}"
@@ -213,11 +225,10 @@ def execute(config: Config, out, show_progress=True, echo=print):
         "seed": config.run.seed, "threads": threads, "threads_chosen": why,
         "threading_layer": threading_policy.layer(), "backend": config.run.backend,
         "engine": config.engine.kind, "grains": engine.state.n})
-    rundir.log(f"start: {engine.state.n} grains, {config.engine.kind} engine, dt = "
-               f"{engine.dt:.4g} s ({engine.dt / report['critical_time_s']:.3f} of the "
-               f"{report['criterion']}), " + _threading_line(threads, why))
-    echo(f"run directory {rundir.path}: {engine.state.n} grains, dt = {engine.dt:.4g} s, "
-         + _threading_line(threads, why))
+    rundir.log(f"start: {engine.state.n} grains, {config.engine.kind} engine, "
+               f"{_stepping(engine, report)}, " + _threading_line(threads, why))
+    echo(f"run directory {rundir.path}: {engine.state.n} grains, "
+         f"{_stepping(engine, None)}, " + _threading_line(threads, why))
     try:
         return _Driver(rundir, protocol, engine, rng, {"phase": 0, "states": {}},
                        config.output, show_progress).drive()

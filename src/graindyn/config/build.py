@@ -79,6 +79,7 @@ def protocol(config: Config):
     """The run's protocol (protocols.PROTOCOLS[protocol.kind]) in its container."""
     made = PROTOCOLS[config.protocol.kind](config.protocol, vessel(config))
     made.title = config.run.name
+    made.seed = config.run.seed
     return made
 
 

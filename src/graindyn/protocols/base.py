@@ -160,6 +160,7 @@ class Protocol:
     summarize_sweep = None
     title = "run"      # the run's name, in figure titles (the runner sets it)
     folder = None      # the run directory, for files of the protocol's own (the runner sets it)
+    seed = 0           # the run's seed, for draws of the protocol's own (config.build sets it)
 
     def __init__(self, settings, vessel: Vessel):
         self.p = settings

@@ -290,7 +290,7 @@ def fill(vessel, radii, rng, insertion="random", packing_fraction=0.2, lattice_g
          lattice_speed=0.0, periodic=()):
     """Grains of ``radii`` [m] put into ``vessel`` (protocols.base.Vessel) from its
     floor: "random" non-overlapping positions in a region of solid fraction
-    ``packing_fraction``, in cell order (touching grains at nearby indices), or a loose
+    ``packing_fraction`` (None: the whole vessel, which must be closed), in cell order (touching grains at nearby indices), or a loose
     "lattice" of gap ``lattice_gap`` (fraction of d_max) with random velocities of
     ``lattice_speed`` [m/s].  ``periodic``: the periodic directions (axis, lo [m],
     hi [m]) of the box; random insertion treats as periodic each axis whose [lo, hi]
@@ -300,7 +300,9 @@ def fill(vessel, radii, rng, insertion="random", packing_fraction=0.2, lattice_g
     dim = vessel.dim
     if insertion == "random":
         solid = float(np.sum(4 / 3 * np.pi * radii**3 if dim == 3 else np.pi * radii**2))
-        region = vessel.region(solid / (packing_fraction * vessel.cross_section))
+        height = vessel.top - vessel.floor if packing_fraction is None \
+            else solid / (packing_fraction * vessel.cross_section)
+        region = vessel.region(height)
         lo, hi, _ = region.bounds(dim)
         axes = [axis for axis, a, b in periodic if lo[axis] == a and hi[axis] == b]
         positions, radii = random_insertion(radii, region, rng, dim, periodic=axes)
