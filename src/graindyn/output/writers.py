@@ -7,6 +7,7 @@ after the checkpoint and goes on as the uninterrupted run would have.
 import numpy as np
 
 from ..analysis.energy import energy_budget
+from ..analysis.gas import granular_temperature
 from ..analysis.packing import coordination_number
 from .network import draw_network
 from .rundir import Series
@@ -14,7 +15,10 @@ from .vtk import VtkSeries
 
 
 def series_row(engine):
-    """One row of the standard time series (column names carry the units)."""
+    """One row of the standard time series (column names carry the units): energies,
+    largest speed, coordination, granular temperatures (analysis.gas), the collisions
+    counted so far (grain pairs and walls) for the engines that count them, and the
+    force on each wall."""
     e = energy_budget(engine)
     v = engine.state.velocities
     speed = np.sqrt(np.max(np.einsum("ij,ij->i", v, v), initial=0.0))
@@ -24,6 +28,11 @@ def series_row(engine):
            "dissipated_tangential [J]": e["dissipated_tangential"],
            "wall_work [J]": e["wall_work"], "max_speed [m/s]": speed,
            "coordination [-]": coordination_number(engine)}
+    row["temperature [J]"], row["rotational_temperature [J]"] = \
+        granular_temperature(engine.state)
+    if hasattr(engine, "collisions"):
+        row["collisions [-]"] = engine.collisions
+        row["wall_collisions [-]"] = engine.wall_collisions
     for k, wall in enumerate(engine.walls.walls):
         row[f"force_{wall.name} [N]"] = engine.walls.normal_force(k)
     return row

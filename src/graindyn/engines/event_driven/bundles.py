@@ -29,13 +29,18 @@ class Grains(NamedTuple):
 
 
 class Calendar(NamedTuple):
-    """Each grain's next event: time (N,) [s], kind (N,) (events.NONE ... RECHECK),
-    partner (N,) (grain, wall or cell face), count (N,) the partner grain's collision
-    counter when predicted;  heap, where (N,) the calendar (calendar.py)."""
+    """Each grain's next events: next_time (N,) [s], kind (N,) (events.NONE ... RECHECK),
+    partner (N,) (grain or wall), count (N,) the partner grain's collision counter when
+    predicted, of its next collision;  cross_time (N,) [s] and face (N,) of its next cell
+    crossing;  time (N,) [s] the earlier of the two, the key of the calendar heap, where
+    (N,) (calendar.py)."""
     time: np.ndarray
+    next_time: np.ndarray
     kind: np.ndarray
     partner: np.ndarray
     count: np.ndarray
+    cross_time: np.ndarray
+    face: np.ndarray
     heap: np.ndarray
     where: np.ndarray
 

@@ -129,8 +129,9 @@ class EventDriven:
         self.last_collision = np.full(n, -math.inf)
         self.local_time = np.full(n, state.time)
         self._wall_impulse = np.zeros((len(self.walls), 3))
-        self._calendar = Calendar(np.zeros(n), np.zeros(n, np.int64),
+        self._calendar = Calendar(np.zeros(n), np.zeros(n), np.zeros(n, np.int64),
                                   np.zeros(n, np.int64), np.zeros(n, np.int64),
+                                  np.zeros(n), np.zeros(n, np.int64),
                                   np.zeros(n, np.int64), np.zeros(n, np.int64))
         self._place_walls()
 

@@ -2,16 +2,17 @@
 carry it out, predict again the grains it changed (Pérez Sec. 2's "typical
 calculation"), all compiled, with no Python per event.
 
-Events of a grain (``Calendar.kind``): PAIR (a collision with grain ``partner``), WALL
-(with wall ``partner``), CELL (it leaves its cell through face ``partner`` = 2 axis +
-(1 upper, 0 lower)), RECHECK (a wall search to take up again, flight.wall_time), NONE
-(nothing ahead: time inf).  Grains are advanced lazily: each has its own clock
+Events of a grain: its next collision (``Calendar.kind``: PAIR with grain ``partner``,
+WALL with wall ``partner``, RECHECK a wall search to take up again (flight.wall_time),
+NONE nothing ahead) and its next cell crossing (through ``Calendar.face`` = 2 axis +
+(1 upper, 0 lower)); the calendar is keyed by the earlier of the two.  Grains are advanced lazily: each has its own clock
 ``Grains.local_time`` and is brought to the present only when an event involves it,
 or at a synchronisation (``synchronise``) where the engine pauses.
 
 Cells: a grid of cells at least a largest diameter wide, so a grain can touch only
 grains of its own and the adjacent cells; leaving a cell is an event, after which the
-grain's partners are looked for around its new cell (Rapaport).  Along a periodic
+grain's collision predicted before stands and only the grains of the newly adjacent
+layer of cells are looked at (Rapaport).  Along a periodic
 axis the grid spans the period and a grain that leaves the last cell enters the first
 one, its coordinate shifted by the period; along the others the outermost cells reach
 to infinity.
@@ -31,7 +32,7 @@ from . import flight
 from .calendar import build_heap, reschedule
 from .collision import collision_impulse, contact_velocity, restitution_now
 
-NONE, PAIR, WALL, CELL, RECHECK = 0, 1, 2, 3, 4
+NONE, PAIR, WALL, RECHECK = 0, 1, 2, 3
 # clock (float64) slots
 (TIME, GX, GY, GZ, DISS_N, DISS_T, WALL_WORK, VIRIAL, TANGENTIAL, COLLAPSE_SPEED,
  CONTACT_DURATION, TOLERANCE, NCLOCK) = range(13)
@@ -137,44 +138,50 @@ def _link(cells, i, c):
 
 
 @driver
-def _schedule(cal, i, t, kind, partner, count):
-    cal.time[i] = t
+def _schedule(cal, i, next_time, kind, partner, count, cross_time, face):
+    """Put grain i's next collision (absolute time, kind, partner, partner's counter) and
+    next cell crossing (absolute time, face) in the calendar, keyed by the earlier."""
+    cal.next_time[i] = next_time
     cal.kind[i] = kind
     cal.partner[i] = partner
     cal.count[i] = count
+    cal.cross_time[i] = cross_time
+    cal.face[i] = face
+    cal.time[i] = min(next_time, cross_time)
     reschedule(cal.heap, cal.where, cal.time, i)
 
 
 @driver
-def predict(g, cal, cells, walls, box, clock, i, now):
-    """Find grain i's next event from ``now`` [s] (i must be at ``now``) and put it in
-    the calendar: the earliest of its cell crossing, its collisions with the grains of
-    the adjacent cells and its wall collisions."""
-    if g.fixed[i] != 0:
-        _schedule(cal, i, math.inf, NONE, -1, 0)
-        return
-    best = math.inf
-    kind = NONE
-    partner = -1
-    count = 0
+def _coords(cells, c):
     nx_ = cells.count[0]
     ny_ = cells.count[1]
-    c = cells.cell[i]
-    cz = c // (nx_ * ny_)
-    cy = (c // nx_) % ny_
-    cx = c % nx_
+    return c % nx_, (c // nx_) % ny_, c // (nx_ * ny_)
+
+
+@driver
+def _crossing(g, cells, box, i):
+    """The time [s] from now until grain i leaves its cell, and through which face."""
+    cx, cy, cz = _coords(cells, cells.cell[i])
     coords = (cx, cy, cz)
+    best = math.inf
+    face = -1
     for axis in range(3):
         lo, hi = _cell_bounds(cells, box, coords[axis], axis)
         t, up = flight.boundary_time(g.positions[i, axis], g.velocities[i, axis],
                                      g.gravity[axis], lo, hi)
         if t < best:
             best = t
-            kind = CELL
-            partner = 2 * axis + up
-    fx, nx = _cell_range(cells, box, cx, 0)
-    fy, ny = _cell_range(cells, box, cy, 1)
-    fz, nz = _cell_range(cells, box, cz, 2)
+            face = 2 * axis + up
+    return best, face
+
+
+@driver
+def _scan_pairs(g, cells, box, i, now, fx, nx, fy, ny, fz, nz, best, partner, count):
+    """The earliest collision [s from now] of grain i with the grains of the block of
+    cells (fx + a) mod n_x, a < nx (and so for y, z), if earlier than ``best``: the
+    updated (best, partner, partner's counter)."""
+    nx_ = cells.count[0]
+    ny_ = cells.count[1]
     for a in range(nz):
         z = (fz + a) % cells.count[2]
         for b in range(ny):
@@ -189,10 +196,16 @@ def predict(g, cal, cells, walls, box, clock, i, now):
                                              g.radii[i] + g.radii[j])
                         if t < best:
                             best = t
-                            kind = PAIR
                             partner = j
                             count = g.collisions[j]
                     j = cells.next[j]
+    return best, partner, count
+
+
+@driver
+def _scan_walls(g, walls, clock, i, now, best, kind, partner):
+    """The earliest wall collision (or re-check) of grain i before ``best`` [s from
+    now]: the updated (best, kind, partner)."""
     tolerance = clock[TOLERANCE] * g.radii[i]
     for w in range(walls.kind.size):
         t, found = flight.wall_time(
@@ -204,7 +217,67 @@ def predict(g, cal, cells, walls, box, clock, i, now):
             best = t
             kind = WALL if found == flight.COLLIDE else RECHECK
             partner = w
-    _schedule(cal, i, now + best, kind, partner, count)
+    return best, kind, partner
+
+
+@driver
+def predict(g, cal, cells, walls, box, clock, i, now):
+    """Find grain i's next events from ``now`` [s] (i must be at ``now``) and put them
+    in the calendar: its cell crossing, and the earliest of its collisions with the
+    grains of the adjacent cells and with the walls before the crossing (walls are
+    looked for again at each crossing)."""
+    if g.fixed[i] != 0:
+        _schedule(cal, i, math.inf, NONE, -1, 0, math.inf, -1)
+        return
+    crossing, face = _crossing(g, cells, box, i)
+    cx, cy, cz = _coords(cells, cells.cell[i])
+    fx, nx = _cell_range(cells, box, cx, 0)
+    fy, ny = _cell_range(cells, box, cy, 1)
+    fz, nz = _cell_range(cells, box, cz, 2)
+    best, partner, count = _scan_pairs(g, cells, box, i, now, fx, nx, fy, ny, fz, nz,
+                                       math.inf, -1, 0)
+    kind = PAIR if partner >= 0 else NONE
+    best, kind, partner = _scan_walls(g, walls, clock, i, now, min(best, crossing), kind,
+                                      partner) if walls.kind.size else (best, kind, partner)
+    _schedule(cal, i, now + best, kind, partner, count, now + crossing, face)
+
+
+@driver
+def predict_crossed(g, cal, cells, walls, box, clock, i, now, face):
+    """Grain i's next events after it crossed ``face`` into its new cell at ``now``: its
+    trajectory is unchanged, so the collision predicted before stands (if with a grain:
+    the counters judge it when it comes up); only the grains of the layer of cells now
+    adjacent beyond the face, the walls and the next crossing are looked at."""
+    crossing, next_face = _crossing(g, cells, box, i)
+    best = math.inf
+    partner = -1
+    count = 0
+    if cal.kind[i] == PAIR:
+        best = cal.next_time[i] - now
+        partner = cal.partner[i]
+        count = cal.count[i]
+    axis = face // 2
+    cx, cy, cz = _coords(cells, cells.cell[i])
+    coords = (cx, cy, cz)
+    layer = coords[axis] + (1 if face % 2 == 1 else -1)
+    n = cells.count[axis]
+    if box.flag[axis] or 0 <= layer < n:
+        fx, nx = _cell_range(cells, box, cx, 0)
+        fy, ny = _cell_range(cells, box, cy, 1)
+        fz, nz = _cell_range(cells, box, cz, 2)
+        first = (layer + n) % n
+        if axis == 0:
+            fx, nx = first, 1
+        elif axis == 1:
+            fy, ny = first, 1
+        else:
+            fz, nz = first, 1
+        best, partner, count = _scan_pairs(g, cells, box, i, now, fx, nx, fy, ny, fz, nz,
+                                           best, partner, count)
+    kind = PAIR if partner >= 0 else NONE
+    best, kind, partner = _scan_walls(g, walls, clock, i, now, min(best, crossing), kind,
+                                      partner) if walls.kind.size else (best, kind, partner)
+    _schedule(cal, i, now + best, kind, partner, count, now + crossing, next_face)
 
 
 @driver
@@ -346,8 +419,14 @@ def run_events(g, cal, cells, walls, box, tables, clock, counters, end):
             last = now
         clock[TIME] = now
         counters[EVENTS] += 1
-        kind = cal.kind[i]
         _advance(g, i, now)
+        if cal.cross_time[i] <= cal.next_time[i]:
+            counters[CROSSINGS] += 1
+            face = cal.face[i]
+            _cross(g, cells, box, i, face)
+            predict_crossed(g, cal, cells, walls, box, clock, i, now, face)
+            continue
+        kind = cal.kind[i]
         if kind == PAIR:
             j = cal.partner[i]
             if g.collisions[j] != cal.count[i]:
@@ -360,10 +439,6 @@ def run_events(g, cal, cells, walls, box, tables, clock, counters, end):
             predict(g, cal, cells, walls, box, clock, j, now)
         elif kind == WALL:
             _wall_collision(g, walls, tables, clock, counters, i, cal.partner[i], now)
-            predict(g, cal, cells, walls, box, clock, i, now)
-        elif kind == CELL:
-            counters[CROSSINGS] += 1
-            _cross(g, cells, box, i, cal.partner[i])
             predict(g, cal, cells, walls, box, clock, i, now)
         else:
             counters[RECHECKS] += 1

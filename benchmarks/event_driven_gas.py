@@ -1,0 +1,125 @@
+"""The event-driven engine's speed on elastic gases, and side by side with the soft engine
+on one dilute cooling gas.
+
+    python benchmarks/event_driven_gas.py rates [--grains 10000 100000] [--collisions 20]
+    python benchmarks/event_driven_gas.py versus [--grains 2000] [--time 0.05]
+
+rates: an elastic gas of smooth spheres (3D) or disks (2D) of diameter 1 mm at
+packing fractions 0.05 and 0.3 in a periodic box, Maxwellian at T = 1e-9 J; after
+5 collisions per grain untimed, the engine runs --collisions per grain (sized by
+Enskog's rate) and the collisions per second of wall time, the events per collision
+and the peak memory of the process are printed, one thread.
+
+versus: the gas of examples/cooling_gas.toml (packing fraction 0.05, restitution 0.9,
+smooth grains, T0 = 1e-9 J) with --grains grains, built once, then run for --time
+simulated seconds by the event-driven engine and by the soft engine (Hertz with Tsuji's
+damping for e = 0.9, no friction, the suggested time step); printed: the wall time of
+each, the collisions each counted, the final temperatures, and the ratio of wall times.
+"""
+import argparse
+import math
+import resource
+import time
+
+import numpy as np
+
+
+def peak_memory():
+    """Peak resident memory of the process [bytes]."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+
+
+def gas(n, phi, dim, restitution=None, seed=2, temperature=1e-9, radius=5e-4):
+    """An EventDriven gas in a periodic box and its volume."""
+    import graindyn as gd
+    from graindyn.core.walls import Periodic
+    from graindyn.engines.event_driven.engine import EventDriven
+    from graindyn.protocols.prepare import BoxRegion, maxwellian_velocities, \
+        random_insertion
+
+    rng = np.random.default_rng(seed)
+    solid = n * (4 / 3 * math.pi * radius**3 if dim == 3 else math.pi * radius**2)
+    side = (solid / phi) ** (1 / dim)
+    positions, radii = random_insertion(np.full(n, radius), BoxRegion((0.0,) * dim,
+                                                                      (side,) * dim),
+                                        rng, dim, periodic=range(dim))
+    state = gd.State.create(positions, radii, 2500.0, dim=dim)
+    state.velocities[:] = maxwellian_velocities(state.masses, temperature, rng, dim)
+    engine = EventDriven(state, [gd.Material(restitution=restitution)],
+                         periodic=[Periodic(a, 0.0, side) for a in range(dim)],
+                         gravity=(0.0, 0.0, 0.0))
+    return engine, side**dim
+
+
+def rates(grains, per_grain):
+    from graindyn.analysis.gas import enskog_collision_rate
+
+    print("dim phi grains collisions wall_s collisions_per_s events_per_collision "
+          "peak_rss_bytes")
+    for n in grains:
+        for dim in (3, 2):
+            for phi in (0.05, 0.3):
+                engine, volume = gas(n, phi, dim)
+                s = engine.state
+                rate = enskog_collision_rate(n / volume, 1e-3, 1e-9, s.masses[0], phi, dim)
+                engine.run(time=5 * 2 / rate)
+                c0, e0 = engine.collisions, engine.events
+                start = time.perf_counter()
+                engine.run(time=per_grain * 2 / rate)
+                wall = time.perf_counter() - start
+                c = engine.collisions - c0
+                print(f"{dim} {phi} {n} {c} {wall:.3f} {c / wall:.4g} "
+                      f"{(engine.events - e0) / c:.2f} {peak_memory()}", flush=True)
+
+
+def versus(n, duration):
+    import graindyn as gd
+    from graindyn.analysis.gas import granular_temperature
+
+    hard, volume = gas(n, 0.05, 3, restitution=0.9)
+    positions = hard.state.positions.copy()
+    velocities = hard.state.velocities.copy()
+    material = gd.Material(density=2500.0, youngs_modulus=6.3e10, poisson_ratio=0.23,
+                           restitution=0.9)
+    state = gd.State.create(positions, hard.state.radii, 2500.0, velocities=velocities)
+    side = volume ** (1 / 3)
+    soft = gd.Simulation(state, [material], gd.ContactModel("hertz", "tsuji", "none"),
+                         periodic=[gd.core.walls.Periodic(a, 0.0, side) for a in range(3)],
+                         gravity=(0.0, 0.0, 0.0))
+    soft.run(steps=10)                      # compile and warm up, untimed
+    hard.run(time=1e-6)
+    rows = []
+    for name, engine in (("event_driven", hard), ("soft", soft)):
+        c0 = engine.collisions
+        start = time.perf_counter()
+        engine.run(time=duration)
+        wall = time.perf_counter() - start
+        rows.append((name, wall, engine.collisions - c0,
+                     granular_temperature(engine.state)[0]))
+        extra = f" dt {engine.dt:.3g} s steps {engine.step}" if name == "soft" else \
+            f" events {engine.events}"
+        print(f"{name}: {n} grains, {duration} s simulated in {wall:.3f} s wall, "
+              f"{rows[-1][2]} collisions, final T {rows[-1][3]:.4g} J{extra}", flush=True)
+    print(f"soft / event_driven wall time: {rows[1][1] / rows[0][1]:.1f}; collisions "
+          f"soft / event_driven {rows[1][2] / max(rows[0][2], 1):.3f}; peak_rss_bytes "
+          f"{peak_memory()}")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    sub = parser.add_subparsers(dest="what", required=True)
+    r = sub.add_parser("rates")
+    r.add_argument("--grains", type=int, nargs="+", default=[10000, 100000])
+    r.add_argument("--collisions", type=float, default=20.0)
+    v = sub.add_parser("versus")
+    v.add_argument("--grains", type=int, default=2000)
+    v.add_argument("--time", type=float, default=0.05)
+    args = parser.parse_args()
+    if args.what == "rates":
+        rates(args.grains, args.collisions)
+    else:
+        versus(args.grains, args.time)
+
+
+if __name__ == "__main__":
+    main()
