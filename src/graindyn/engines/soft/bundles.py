@@ -5,7 +5,8 @@ in nopython mode as it does a plain tuple (the same machine code; ``grains.radii
 resolved at compile time), and caches it on disk, the class being importable from here.
 Kernels read the fields by name, never by position; bundles are built by keyword.
 Shapes: N grains, W walls, P pair slots (the pair list's capacity), Q wall-contact
-slots, H history values per contact (Simulation.history_size), B blocks of grains
+slots, H history values per contact (Simulation.history_size: the model's, then the
+touching mark, contacts.touch), B blocks of grains
 (contacts.block_count).  Lists are CSR: the contacts grain i lists are slots
 start[i]..start[i + 1] - 1.
 
@@ -184,12 +185,15 @@ class LawWorkspace(NamedTuple):
       workspace column
     dirty : (P,) uint8 1 where a pair slot may hold a non-zero force or history
     sums : (B, 2) float64 [J] energies (normal, tangential) each block dissipated
+    collisions : (B, 2) int64 grain-pair and grain-wall contacts that started in each
+      block (contacts.touch)
     """
     address: int
     work: np.ndarray
     slots: np.ndarray
     dirty: np.ndarray
     sums: np.ndarray
+    collisions: np.ndarray
 
 
 class LoopArrays(NamedTuple):

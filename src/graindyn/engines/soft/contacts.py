@@ -15,6 +15,13 @@ block), so the gather reads back only the pairs that cross blocks (``owned_from`
 its wall contacts are added to ``own`` too (_wall_block).  The GPU gathers every pair
 and every wall contact.  Only the order of the sums differs.
 
+Collisions: the last history column of every contact is its touching mark (``touch``):
+1.0 while the contact is closed, zeroed with the rest of its row when it opens
+(_release), and carried over neighbour rebuilds and into snapshots with the history.
+A contact found touching with its mark at 0 starts there: a collision, which the CPU
+counts by block (grain pairs and wall contacts, contact_forces), in grain order; the
+GPU sets the mark (pair_row, wall_row) but does not count.
+
 Geometry (Oquendo Eq. 3-4): n = (r_i - r_j)/|r_i - r_j|, overlap h = R_i + R_j - |r_i - r_j|,
 the contact point sits at R'_i = R_i - h R_j/(R_i + R_j) from grain i, and the relative
 velocity of i at that point is v_i - v_j - (R'_i w_i + R'_j w_j) x n.
@@ -46,6 +53,16 @@ def _release(model, params, a, b, r_eff, history, force, torque, k):
         force[k, d] = 0.0
         torque[k, d] = 0.0
     return lost
+
+
+@scalar
+def touch(history, k):
+    """Set the touching mark of contact k (its last history column, 1.0) and return 1
+    if it was not set: the contact starts at this evaluation, a collision; else 0."""
+    mark = history.shape[1] - 1
+    started = history[k, mark] == 0.0
+    history[k, mark] = 1.0
+    return np.int64(started)
 
 
 @scalar
@@ -98,8 +115,8 @@ def pair_row(i, model, params, positions, velocities, angular_velocities, radii,
              materials, fixed, periodic_flag, periodic_length, start, partners, history,
              pair_force, own, pair_torque_j, max_overlap, dt):
     """The pairs listed by grain i, one contact after the other (the GPU's pair kernel;
-    the CPU batches them, _pair_block): writes their forces, own[i] and max_overlap[i];
-    returns the normal and tangential energy dissipated [J]."""
+    the CPU batches them, _pair_block): writes their forces, touching marks (touch),
+    own[i] and max_overlap[i]; returns the normal and tangential energy dissipated [J]."""
     dissipated_n = 0.0
     dissipated_t = 0.0
     px, py, pz = periodic_flag[0], periodic_flag[1], periodic_flag[2]
@@ -135,6 +152,7 @@ def pair_row(i, model, params, positions, velocities, angular_velocities, radii,
         for d in range(3):
             pair_force[k, d] = out[d]
             pair_torque_j[k, d] = out[6 + d]
+        touch(history, k)
         fx += out[0]
         fy += out[1]
         fz += out[2]
@@ -241,13 +259,15 @@ def _flush(law, work, count, slots, hi, params, velocities, angular_velocities, 
     beyond the block is stored for the gather.  ``planar`` (2D): only the force in the
     plane and the torque about z are scattered, the other components being zero (the
     force and torque rows of a pair keep the zeros they hold).  Returns the normal and
-    tangential energy dissipated [J] and their largest overlap / smaller radius."""
+    tangential energy dissipated [J], their largest overlap / smaller radius and how
+    many of them start (touch: collisions)."""
     _fill(count, work, slots, params, velocities, angular_velocities, radii, masses,
           materials, fixed, history, planar)
     call_law(law, work, whole_lanes(count), dt, np.int64(1))
     lost_n = 0.0
     lost_t = 0.0
     worst = 0.0
+    started = 0
     for s in range(count):
         k = slots[0, s]
         i = slots[1, s]
@@ -273,9 +293,10 @@ def _flush(law, work, count, slots, hi, params, velocities, angular_velocities, 
                 pair_torque_j[k, d] = torque_j
         for h in range(history.shape[1]):
             history[k, h] = work[(HISTORY + h) * STRIDE + s]
+        started += touch(history, k)
         lost_n += work[(OUTPUT + 9) * STRIDE + s]
         lost_t += work[(OUTPUT + 10) * STRIDE + s]
-    return lost_n, lost_t, worst
+    return lost_n, lost_t, worst, started
 
 
 @block
@@ -303,8 +324,8 @@ def _pair_rows(lo, hi, law, work, slots, dirty, model, params, positions, veloci
                periodic_length, start, partners, owner, history, pair_force, own,
                pair_torque_j, max_overlap, dt, planar):
     """The pairs listed by grains lo..hi-1: the touching ones gathered CAP at a time
-    into ``work`` and evaluated by the law loop (_flush); returns the energies.  Same
-    pair forces as pair_row, to the bit.
+    into ``work`` and evaluated by the law loop (_flush); returns the energies and the
+    number of pairs that start (collisions).  Same pair forces as pair_row, to the bit.
     The gathering has no branch on the contact test (every pair is written at the next
     free column, which advances only when it touches): that branch, taken or not at
     random, cost more than the rest of the gathering.  The pairs are walked in one loop
@@ -319,6 +340,7 @@ def _pair_rows(lo, hi, law, work, slots, dirty, model, params, positions, veloci
     lx, ly, lz = periodic_length[0], periodic_length[1], periodic_length[2]
     count = 0
     worst = 0.0
+    started = 0
     for i in range(lo, hi):
         for d in range(6):
             own[i, d] = 0.0
@@ -343,22 +365,25 @@ def _pair_rows(lo, hi, law, work, slots, dirty, model, params, positions, veloci
         slots[2, count] = j
         count += touching
         if count == CAP:
-            dn, dt_, deepest = _flush(law, work, count, slots, hi, params, velocities,
-                                      angular_velocities, radii, masses, materials, fixed,
-                                      history, pair_force, own, pair_torque_j, dt, planar)
+            dn, dt_, deepest, new = _flush(law, work, count, slots, hi, params, velocities,
+                                           angular_velocities, radii, masses, materials,
+                                           fixed, history, pair_force, own, pair_torque_j,
+                                           dt, planar)
             dissipated_n += dn
             dissipated_t += dt_
             worst = max(worst, deepest)
+            started += new
             count = 0
     if count > 0:
-        dn, dt_, deepest = _flush(law, work, count, slots, hi, params, velocities,
-                                  angular_velocities, radii, masses, materials, fixed, history,
-                                  pair_force, own, pair_torque_j, dt, planar)
+        dn, dt_, deepest, new = _flush(law, work, count, slots, hi, params, velocities,
+                                       angular_velocities, radii, masses, materials, fixed,
+                                       history, pair_force, own, pair_torque_j, dt, planar)
         dissipated_n += dn
         dissipated_t += dt_
         worst = max(worst, deepest)
+        started += new
     keep_worst(lo, hi, worst, max_overlap)
-    return dissipated_n, dissipated_t
+    return dissipated_n, dissipated_t, started
 
 
 @scalar
@@ -403,8 +428,9 @@ def wall_row(i, model, params, positions, velocities, angular_velocities, radii,
              materials, wall_kind, wall_geometry, wall_offset, wall_velocity, wall_material,
              wall_start, wall_ids, wall_history, wall_force, wall_torque, max_overlap, dt):
     """The wall contacts of grain i, one after the other (the GPU kernels' loop body;
-    the CPU batches them, _wall_block); returns the normal and tangential energy
-    dissipated [J]."""
+    the CPU batches them, _wall_block): writes their forces, torques, touching marks
+    (touch) and max_overlap[i]; returns the normal and tangential energy dissipated
+    [J]."""
     dissipated_n = 0.0
     dissipated_t = 0.0
     worst = max_overlap[i]
@@ -428,6 +454,7 @@ def wall_row(i, model, params, positions, velocities, angular_velocities, radii,
         for d in range(3):
             wall_force[q, d] = out[d]
             wall_torque[q, d] = out[3 + d]
+        touch(wall_history, q)
         dissipated_n += out[9]
         dissipated_t += out[10]
     max_overlap[i] = worst
@@ -438,10 +465,12 @@ def wall_row(i, model, params, positions, velocities, angular_velocities, radii,
 def _flush_walls(law, work, count, slots, wall_history, wall_force, wall_torque, own, dt):
     """Evaluate the law on the ``count`` wall contacts gathered in ``work``, store
     their forces, torques and histories and add them to own (their grains are in the
-    block, slots[1]); returns the normal and tangential energy dissipated [J]."""
+    block, slots[1]); returns the normal and tangential energy dissipated [J] and how
+    many of them start (touch: collisions)."""
     call_law(law, work, whole_lanes(count), dt, np.int64(0))
     lost_n = 0.0
     lost_t = 0.0
+    started = 0
     for s in range(count):
         q = slots[0, s]
         i = slots[1, s]
@@ -454,9 +483,10 @@ def _flush_walls(law, work, count, slots, wall_history, wall_force, wall_torque,
             own[i, 3 + d] += torque
         for h in range(wall_history.shape[1]):
             wall_history[q, h] = work[(HISTORY + h) * STRIDE + s]
+        started += touch(wall_history, q)
         lost_n += work[(OUTPUT + 9) * STRIDE + s]
         lost_t += work[(OUTPUT + 10) * STRIDE + s]
-    return lost_n, lost_t
+    return lost_n, lost_t, started
 
 
 @block
@@ -466,12 +496,14 @@ def _wall_block(lo, hi, law, work, slots, model, params, positions, velocities,
                 wall_history, wall_force, wall_torque, own, max_overlap, dt):
     """The wall contacts of grains lo..hi-1 (as wall_row, to the bit): the touching ones
     gathered CAP at a time into ``work`` and evaluated by the law loop, and added to
-    own; returns the energies.  One loop over the candidates q, their grains read from
-    ``wall_owner`` (as the pair walk, _pair_block)."""
+    own; returns the energies and the number of contacts that start (collisions).  One
+    loop over the candidates q, their grains read from ``wall_owner`` (as the pair walk,
+    _pair_block)."""
     dissipated_n = 0.0
     dissipated_t = 0.0
     count = 0
     worst = 0.0
+    started = 0
     for q in range(wall_start[lo], wall_start[hi]):
         i = wall_owner[q]
         r_i = radii[i]
@@ -494,18 +526,20 @@ def _wall_block(lo, hi, law, work, slots, model, params, positions, velocities,
         slots[1, count] = i
         count += 1
         if count == CAP:
-            dn, dt_ = _flush_walls(law, work, count, slots, wall_history, wall_force,
-                                   wall_torque, own, dt)
+            dn, dt_, new = _flush_walls(law, work, count, slots, wall_history, wall_force,
+                                        wall_torque, own, dt)
             dissipated_n += dn
             dissipated_t += dt_
+            started += new
             count = 0
     if count > 0:
-        dn, dt_ = _flush_walls(law, work, count, slots, wall_history, wall_force, wall_torque,
-                               own, dt)
+        dn, dt_, new = _flush_walls(law, work, count, slots, wall_history, wall_force,
+                                    wall_torque, own, dt)
         dissipated_n += dn
         dissipated_t += dt_
+        started += new
     keep_worst(lo, hi, worst, max_overlap)
-    return dissipated_n, dissipated_t
+    return dissipated_n, dissipated_t, started
 
 
 PAIRS = 1     # contact_forces' parts: the listed pairs, the wall contacts, or both,
@@ -521,24 +555,27 @@ def _contact_block(lo, hi, parts, law, work, slots, dirty, model, params, positi
                    wall_material, wall_start, wall_ids, wall_owner, wall_history, wall_force,
                    wall_torque, own, max_overlap, dt):
     """The pairs (_pair_block) then the wall contacts (_wall_block) of grains lo..hi-1,
-    as ``parts`` says; returns the energies."""
+    as ``parts`` says; returns the energies and the grain-pair and grain-wall
+    collisions."""
     dissipated_n = 0.0
     dissipated_t = 0.0
+    pair_collisions = 0
+    wall_collisions = 0
     if parts & PAIRS:
-        dissipated_n, dissipated_t = _pair_block(
+        dissipated_n, dissipated_t, pair_collisions = _pair_block(
             lo, hi, law, work, slots, dirty, model, params, positions, velocities,
             angular_velocities, radii, masses, materials, fixed, periodic_flag,
             periodic_length, start, partners, owner, history, pair_force, own,
             pair_torque_j, max_overlap, dt, parts & PLANAR != 0)
     if parts & WALLS:
-        wn, wt = _wall_block(lo, hi, law, work, slots, model, params, positions, velocities,
-                             angular_velocities, radii, masses, materials, wall_kind,
-                             wall_geometry, wall_offset, wall_velocity, wall_material,
-                             wall_start, wall_ids, wall_owner, wall_history, wall_force,
-                             wall_torque, own, max_overlap, dt)
+        wn, wt, wall_collisions = _wall_block(
+            lo, hi, law, work, slots, model, params, positions, velocities,
+            angular_velocities, radii, masses, materials, wall_kind, wall_geometry,
+            wall_offset, wall_velocity, wall_material, wall_start, wall_ids, wall_owner,
+            wall_history, wall_force, wall_torque, own, max_overlap, dt)
         dissipated_n += wn
         dissipated_t += wt
-    return dissipated_n, dissipated_t
+    return dissipated_n, dissipated_t, pair_collisions, wall_collisions
 
 
 @parallel
@@ -555,7 +592,7 @@ def contact_forces(model, params, law, positions, velocities, angular_velocities
     (neighbors.list_owners).
     law : bundles.LawWorkspace (law_loop.workspace): the address of the law loop
     (law_loop.law_address), workspaces (nblock, ...), slots (nblock, 3, CAP), dirty
-    (one byte per pair slot), energies (nblock, 2).
+    (one byte per pair slot), energies (nblock, 2), collisions (nblock, 2).
     pair_force[k] [N] is the force on the first grain i of pair k and pair_torque_j[k]
     [N m] the torque on its second grain j when j is in another block; own[i] (6) is
     the sum of the forces and torques on i of the pairs it lists, of the pairs of its
@@ -564,11 +601,13 @@ def contact_forces(model, params, law, positions, velocities, angular_velocities
     loop last read and reset it (keep_worst: by block on the CPU, by grain on the GPU).
     parts : PAIRS | WALLS for a step; PAIRS alone (which zeroes own first) or WALLS alone
     (which adds to own) time or test one kind; | PLANAR in 2D.
-    Returns the energies dissipated in the step, normal and tangential [J], summed over
-    ``nblock`` fixed blocks of grains (block_count) in block order.
+    Returns the energies dissipated in the step, normal and tangential [J], and the
+    grain-pair and grain-wall contacts that start in it (collisions: touch), summed
+    over ``nblock`` fixed blocks of grains (block_count) in block order.
     """
     n = positions.shape[0]
-    address, work, slots, dirty, sums = law.address, law.work, law.slots, law.dirty, law.sums
+    address, work, slots, dirty, sums, started = \
+        law.address, law.work, law.slots, law.dirty, law.sums, law.collisions
     if nblock == 1:    # no parallel region to enter (a few us per call); a plain int64 0
         return _contact_block(
             np.int64(0), n, parts, address, work[0], slots[0], dirty, model, params,
@@ -578,14 +617,14 @@ def contact_forces(model, params, law, positions, velocities, angular_velocities
             wall_material, wall_start, wall_ids, wall_owner, wall_history, wall_force, wall_torque,
             own, max_overlap, dt)
     for b in prange(nblock):
-        sums[b, 0], sums[b, 1] = _contact_block(
+        sums[b, 0], sums[b, 1], started[b, 0], started[b, 1] = _contact_block(
             b * n // nblock, (b + 1) * n // nblock, parts, address, work[b], slots[b], dirty,
             model, params, positions, velocities, angular_velocities, radii, masses,
             materials, fixed, periodic_flag, periodic_length, start, partners, owner,
             history, pair_force, pair_torque_j, wall_kind, wall_geometry, wall_offset,
             wall_velocity, wall_material, wall_start, wall_ids, wall_owner, wall_history,
             wall_force, wall_torque, own, max_overlap, dt)
-    return _block_total(sums, nblock)
+    return _block_total(sums, started, nblock)
 
 
 def block_count(n, threads):
@@ -608,14 +647,19 @@ def block_count(n, threads):
 
 
 @scalar
-def _block_total(sums, nblock):
-    """Column sums of the energies of the first ``nblock`` blocks, in block order."""
+def _block_total(sums, started, nblock):
+    """Column sums of the energies and the collisions of the first ``nblock`` blocks,
+    in block order."""
     total_n = 0.0
     total_t = 0.0
+    pair_collisions = 0
+    wall_collisions = 0
     for b in range(nblock):
         total_n += sums[b, 0]
         total_t += sums[b, 1]
-    return total_n, total_t
+        pair_collisions += started[b, 0]
+        wall_collisions += started[b, 1]
+    return total_n, total_t, pair_collisions, wall_collisions
 
 
 @scalar

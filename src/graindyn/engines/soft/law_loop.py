@@ -258,14 +258,15 @@ def workspace(address, blocks, history_size):
     """The law bundle (bundles.LawWorkspace) of the law loop at ``address``
     (law_address) for ``blocks`` blocks of grains: workspaces (blocks, rows * STRIDE),
     the pair, first and second grain of each column (blocks, 3, CAP), the pair loop's
-    dirty flags (one byte per pair slot, sized by ``prepare``) and the energies each
-    block dissipated (blocks, 2)."""
+    dirty flags (one byte per pair slot, sized by ``prepare``), the energies each
+    block dissipated (blocks, 2) and the collisions it counted (blocks, 2)."""
     if history_size > MAX_HISTORY:
         raise ValueError(f"a model keeps at most {MAX_HISTORY} history values")
     return LawWorkspace(address=address,
                         work=_aligned_zeros((blocks, workspace_rows(history_size) * STRIDE)),
                         slots=np.zeros((blocks, 3, CAP), np.int64),
-                        dirty=np.ones(0, np.uint8), sums=np.zeros((blocks, 2)))
+                        dirty=np.ones(0, np.uint8), sums=np.zeros((blocks, 2)),
+                        collisions=np.zeros((blocks, 2), np.int64))
 
 
 def _aligned_zeros(shape):

@@ -14,7 +14,10 @@ One step (the order is fixed here and nowhere else):
      0 until the first step: multi-step schemes then use their start-up formulas);
   3. every ``check_interval`` steps: NaN, excessive overlap, and the stop condition.
 The first step of a run first builds the lists and evaluates the forces at the start.
-Dissipated energies and the work of moving walls are accumulated in ``clock``.
+Dissipated energies and the work of moving walls are accumulated in ``clock``, the
+collisions (contacts that start, contacts.touch) in ``counters``: COLLISIONS (grain
+pairs) and WALL_COLLISIONS, at every evaluation of a step but not at the priming
+one, whose contacts were there when the run (or a relocation) put the grains.
 
 The kernels take their arrays in the named bundles of engines/soft/bundles.py (grains:
 Grains, pairs: Pairs, walls: WallBundle, periodic: PeriodicBox, law: LawWorkspace) and
@@ -43,8 +46,8 @@ TIME, DT, SKIN, GX, GY, GZ, COND_VALUE, OVERLAP_LIMIT, DISS_N, DISS_T, WALL_WORK
     range(12)
 # counters (int64) slots
 STEP, DIM, INTEGRATOR, REBUILDS, FORCE_REBUILD, CHECK_INTERVAL, COND_KIND, PRIMED, \
-    NEED_PAIRS, NEED_WALLS, HISTORY_STEPS = range(11)
-NCOUNTERS = 11
+    NEED_PAIRS, NEED_WALLS, HISTORY_STEPS, COLLISIONS, WALL_COLLISIONS = range(13)
+NCOUNTERS = 13
 # counters[FORCE_REBUILD]: 1 forced; RELISTED: the lists were just rebuilt for the step
 # run_chunk returned RELIST in (after its first drift, or before the priming evaluation)
 RELISTED = 3
@@ -64,8 +67,9 @@ def new_clock(dt, skin, gravity):
 def evaluate_forces(model, params, law, grains, pairs, walls, periodic, gravity, dt, nblock,
                     dim):
     """All contact forces and the total force on each wall in a ``dim``-D system;
-    returns the (normal, tangential) energy dissipated [J] and the power of the walls on
-    the grains [W].
+    returns the (normal, tangential) energy dissipated [J], the power of the walls on
+    the grains [W], and the grain-pair and grain-wall contacts that started
+    (collisions, contacts.touch).
     law: the batched law of the contacts (contacts.contact_forces);
     nblock: blocks of grains handed to threads (contacts.block_count).  The owners of
     the pairs and wall candidates are the lists' scratch_partners and scratch_wall_ids
@@ -73,15 +77,14 @@ def evaluate_forces(model, params, law, grains, pairs, walls, periodic, gravity,
     parts = PAIRS | WALLS
     if dim == 2:
         parts |= PLANAR
-    dn, dt_ = contact_forces(model, params, law, grains.positions, grains.velocities,
-                             grains.angular_velocities, grains.radii, grains.masses,
-                             grains.materials, grains.fixed, periodic.flag, periodic.length,
-                             pairs.start, pairs.partners, pairs.scratch_partners,
-                             pairs.history, pairs.force, pairs.torque_j, walls.kind,
-                             walls.geometry, walls.offset, walls.velocity, walls.material,
-                             walls.wall_start, walls.wall_ids, walls.scratch_wall_ids,
-                             walls.wall_history, walls.contact_force, walls.contact_torque,
-                             pairs.own, grains.max_overlap, dt, nblock, np.int64(parts))
+    dn, dt_, pair_collisions, wall_collisions = contact_forces(
+        model, params, law, grains.positions, grains.velocities, grains.angular_velocities,
+        grains.radii, grains.masses, grains.materials, grains.fixed, periodic.flag,
+        periodic.length, pairs.start, pairs.partners, pairs.scratch_partners, pairs.history,
+        pairs.force, pairs.torque_j, walls.kind, walls.geometry, walls.offset, walls.velocity,
+        walls.material, walls.wall_start, walls.wall_ids, walls.scratch_wall_ids,
+        walls.wall_history, walls.contact_force, walls.contact_torque, pairs.own,
+        grains.max_overlap, dt, nblock, np.int64(parts))
     force, contact_force, velocity, wall_ids = \
         walls.force, walls.contact_force, walls.velocity, walls.wall_ids
     force[:] = 0.0
@@ -91,7 +94,7 @@ def evaluate_forces(model, params, law, grains, pairs, walls, periodic, gravity,
         for d in range(3):
             force[w, d] -= contact_force[q, d]
             power += contact_force[q, d] * velocity[w, d]
-    return dn, dt_, power
+    return dn, dt_, power, pair_collisions, wall_collisions
 
 
 @kernel
@@ -287,9 +290,11 @@ def run_chunk(model, params, law, grains, pairs, walls, periodic, clock, counter
             # velocity Verlet kicks h/2 twice): contact-history increments, dissipation
             # and wall work advance by that share, not by the whole step
             share = dt / STAGES[integrator]
-            dn, dtan, power = evaluate_forces(model, params, law, grains, pairs, walls,
-                                              periodic, gravity, share, block_scratch.size,
-                                              counters[DIM])
+            dn, dtan, power, pair_collisions, wall_collisions = evaluate_forces(
+                model, params, law, grains, pairs, walls, periodic, gravity, share,
+                block_scratch.size, counters[DIM])
+            counters[COLLISIONS] += pair_collisions
+            counters[WALL_COLLISIONS] += wall_collisions
             clock[DISS_N] += dn
             clock[DISS_T] += dtan
             clock[WALL_WORK] += power * share

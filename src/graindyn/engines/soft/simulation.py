@@ -43,13 +43,30 @@ def _gravity(value, dim):
     return gravity
 
 
+def _with_touching_marks(arrays, width):
+    """A snapshot written before collisions were counted (``counters`` shorter than
+    loop.NCOUNTERS), brought up to date: the collision counters at zero, and each
+    contact history row widened to ``width`` columns, its touching mark (the last,
+    contacts.touch) set where the contact's force of the last evaluation is not zero."""
+    arrays = dict(arrays)
+    counters = np.asarray(arrays["loop/counters"])
+    arrays["loop/counters"] = np.pad(counters, (0, loop.NCOUNTERS - counters.size))
+    for group in ("pairs", "wall_contacts"):
+        history = np.asarray(arrays[f"{group}/history"])
+        history = np.pad(history, ((0, 0), (0, width - history.shape[1])))
+        history[:, -1] = np.any(np.asarray(arrays[f"{group}/force"]) != 0.0, axis=1)
+        arrays[f"{group}/history"] = history
+    return arrays
+
+
 class Simulation:
     """A soft-particle DEM simulation (SI units), the soft engine of core/engine.py:
     protocols, analysis and outputs use it through that interface (state, walls, time,
     gravity, run, contacts, wall_contacts, energies, snapshot/restore, relocate,
-    set_motion, set_servo, place_wall); ``steps=`` runs, ``dt``, ``step`` and the
-    kernel arrays (``pairs``, ``wall_pairs``: the neighbour and wall-contact lists,
-    bundles.Pairs and WallPairs, arrays by name; ``clock``, ``counters``) are its own.
+    set_motion, set_servo, place_wall); ``steps=`` runs, ``dt``, ``step``, the
+    ``collisions`` and ``wall_collisions`` counts and the kernel arrays (``pairs``,
+    ``wall_pairs``: the neighbour and wall-contact lists, bundles.Pairs and WallPairs,
+    arrays by name; ``clock``, ``counters``) are its own.
 
     state : State;  materials : list of Material (grain and wall materials by index)
     model : ContactModel;  walls : list of Plane/Cylinder;  periodic : list of Periodic
@@ -69,7 +86,7 @@ class Simulation:
       history by name, e.g. previous_accelerations for beeman, jerks/snaps/crackles
       for gear6: views into one (slots, N, 3) array, translational then angular_),
       ``clock`` (float64: time, dt, energies...) and ``counters`` (int64: step,
-      integrator history length...), the neighbour and wall-contact lists with their
+      integrator history length, collisions...), the neighbour and wall-contact lists with their
       contact histories, and the wall arrays.  ``snapshot()`` copies all of them into
       one dict of numpy arrays and ``restore(dict)`` puts them back into a Simulation
       built with the same arguments; the continued run is then bitwise identical to an
@@ -145,7 +162,8 @@ class Simulation:
         self.reference_positions = state.positions.copy()
         self.max_overlap = np.zeros(n)
         self.block_scratch = np.zeros(block_count(n, numba.get_num_threads()))
-        self.history_size = max(3, self.model.history_size)
+        # the model's history values, then the touching mark of each contact (contacts.touch)
+        self.history_size = max(3, self.model.history_size + 1)
         # start small: the first build grows the lists to 1.3 x what it needs
         self._allocate_pairs(2 * n + 64)
         self._allocate_walls(n // 4 + 16)
@@ -274,6 +292,30 @@ class Simulation:
     def rebuilds(self):
         """Neighbour-list builds so far."""
         return int(self.counters[loop.REBUILDS])
+
+    @property
+    def collisions(self):
+        """Grain-pair collisions since the start [-]: pairs found touching (overlap > 0) at
+        a force evaluation of a step when they were not at the one before, counted in
+        the compiled loop (loop.COLLISIONS, contacts.touch).  A pair in lasting contact
+        counts once, also over neighbour rebuilds; the contacts found by the evaluation
+        that starts the loop afresh (the first of a run, then after relocate, hold or a
+        change of gravity) were there already and count none.  A collision rate is its
+        change over a time interval divided by that interval [1/s].  Counted on the CPU
+        only: ValueError on the GPU backend."""
+        return self._collisions(loop.COLLISIONS)
+
+    @property
+    def wall_collisions(self):
+        """Grain-wall collisions since the start [-], counted as ``collisions`` is (one per
+        grain and wall whose contact starts; loop.WALL_COLLISIONS)."""
+        return self._collisions(loop.WALL_COLLISIONS)
+
+    def _collisions(self, slot):
+        """counters[slot] as an int; ValueError on the GPU, whose loop does not count."""
+        if self.backend == "gpu":
+            raise ValueError("collisions are counted by the CPU loop only (backend 'cpu')")
+        return int(self.counters[slot])
 
     @property
     def dissipated(self):
@@ -457,6 +499,8 @@ class Simulation:
         missing = [k for k in self.snapshot() if k not in arrays]
         if missing:
             raise ValueError(f"snapshot lacks {missing}")
+        if np.asarray(arrays["loop/counters"]).size < loop.NCOUNTERS:
+            arrays = _with_touching_marks(arrays, self.history_size)
         def put(target, name):
             value = np.asarray(arrays[name])
             if value.shape != target.shape or value.dtype != target.dtype:
