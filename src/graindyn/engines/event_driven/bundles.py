@@ -32,8 +32,8 @@ class Calendar(NamedTuple):
     """Each grain's next events: next_time (N,) [s], kind (N,) (events.NONE ... RECHECK),
     partner (N,) (grain or wall), count (N,) the partner grain's collision counter when
     predicted, of its next collision;  cross_time (N,) [s] and face (N,) of its next cell
-    crossing;  time (N,) [s] the earlier of the two, the key of the calendar heap, where
-    (N,) (calendar.py)."""
+    crossing;  time (N,) [s] the earlier of the two;  heap, key, where (N,) the calendar
+    (calendar.py)."""
     time: np.ndarray
     next_time: np.ndarray
     kind: np.ndarray
@@ -42,6 +42,7 @@ class Calendar(NamedTuple):
     cross_time: np.ndarray
     face: np.ndarray
     heap: np.ndarray
+    key: np.ndarray
     where: np.ndarray
 
 

@@ -8,71 +8,79 @@ whose partner has collided since it was predicted is stale; it is recognised whe
 comes up by the partner's collision counter, and the grain is then predicted afresh
 (events.py).
 
-Arrays: heap (N,) grain ids in heap order, where (N,) each grain's place in the heap,
-time (N,) [s] each grain's event time (the key).  Ties are broken by the grain index, so
-the order of events is the same on every machine.
+Arrays: heap (N,) grain ids in heap order with key (N,) [s] their event times beside
+them (the sifts then read contiguous memory, not the grains' scattered times), where
+(N,) each grain's place in the heap.  Ties are broken by the grain index, so the order
+of events is the same on every machine.
 """
 from ..._jit import driver
 
 
 @driver
-def _earlier(time, a, b):
-    return time[a] < time[b] or (time[a] == time[b] and a < b)
+def _earlier(ta, a, tb, b):
+    return ta < tb or (ta == tb and a < b)
 
 
 @driver
-def sift_up(heap, where, time, k):
+def sift_up(heap, key, where, k):
     """Move the entry at heap place k up to where its key belongs."""
     grain = heap[k]
+    t = key[k]
     while k > 0:
         parent = (k - 1) >> 1
-        other = heap[parent]
-        if not _earlier(time, grain, other):
+        if not _earlier(t, grain, key[parent], heap[parent]):
             break
-        heap[k] = other
-        where[other] = k
+        heap[k] = heap[parent]
+        key[k] = key[parent]
+        where[heap[k]] = k
         k = parent
     heap[k] = grain
+    key[k] = t
     where[grain] = k
 
 
 @driver
-def sift_down(heap, where, time, k):
+def sift_down(heap, key, where, k):
     """Move the entry at heap place k down to where its key belongs."""
     n = heap.size
     grain = heap[k]
+    t = key[k]
     while True:
         child = 2 * k + 1
         if child >= n:
             break
-        if child + 1 < n and _earlier(time, heap[child + 1], heap[child]):
+        if child + 1 < n and _earlier(key[child + 1], heap[child + 1], key[child],
+                                      heap[child]):
             child += 1
-        other = heap[child]
-        if not _earlier(time, other, grain):
+        if not _earlier(key[child], heap[child], t, grain):
             break
-        heap[k] = other
-        where[other] = k
+        heap[k] = heap[child]
+        key[k] = key[child]
+        where[heap[k]] = k
         k = child
     heap[k] = grain
+    key[k] = t
     where[grain] = k
 
 
 @driver
-def reschedule(heap, where, time, grain):
-    """Restore the heap order after ``time[grain]`` changed."""
+def reschedule(heap, key, where, grain, time):
+    """Give ``grain`` the key ``time`` [s] and restore the heap order."""
     k = where[grain]
-    if k > 0 and _earlier(time, grain, heap[(k - 1) >> 1]):
-        sift_up(heap, where, time, k)
+    key[k] = time
+    if k > 0 and _earlier(time, grain, key[(k - 1) >> 1], heap[(k - 1) >> 1]):
+        sift_up(heap, key, where, k)
     else:
-        sift_down(heap, where, time, k)
+        sift_down(heap, key, where, k)
 
 
 @driver
-def build_heap(heap, where, time):
+def build_heap(heap, key, where, time):
     """Order all grains by ``time`` (Floyd's bottom-up construction, O(N))."""
     n = heap.size
     for i in range(n):
         heap[i] = i
+        key[i] = time[i]
         where[i] = i
     for k in range(n // 2 - 1, -1, -1):
-        sift_down(heap, where, time, k)
+        sift_down(heap, key, where, k)

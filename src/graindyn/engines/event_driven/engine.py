@@ -132,7 +132,8 @@ class EventDriven:
         self._calendar = Calendar(np.zeros(n), np.zeros(n), np.zeros(n, np.int64),
                                   np.zeros(n, np.int64), np.zeros(n, np.int64),
                                   np.zeros(n), np.zeros(n, np.int64),
-                                  np.zeros(n, np.int64), np.zeros(n, np.int64))
+                                  np.zeros(n, np.int64), np.zeros(n),
+                                  np.zeros(n, np.int64))
         self._place_walls()
 
     def _check_motion(self, k, kind):

@@ -148,7 +148,7 @@ def _schedule(cal, i, next_time, kind, partner, count, cross_time, face):
     cal.cross_time[i] = cross_time
     cal.face[i] = face
     cal.time[i] = min(next_time, cross_time)
-    reschedule(cal.heap, cal.where, cal.time, i)
+    reschedule(cal.heap, cal.key, cal.where, i, cal.time[i])
 
 
 @driver
@@ -407,7 +407,7 @@ def run_events(g, cal, cells, walls, box, tables, clock, counters, end):
     last = -math.inf
     while True:
         i = cal.heap[0]
-        now = cal.time[i]
+        now = cal.key[0]
         if not now < end:
             return DONE
         if now == last:
@@ -526,6 +526,6 @@ def predict_all(g, cal, cells, walls, box, clock):
     now = clock[TIME]
     for i in range(g.radii.size):
         cal.time[i] = math.inf
-    build_heap(cal.heap, cal.where, cal.time)
+    build_heap(cal.heap, cal.key, cal.where, cal.time)
     for i in range(g.radii.size):
         predict(g, cal, cells, walls, box, clock, i, now)
