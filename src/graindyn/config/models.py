@@ -360,11 +360,28 @@ class Config(Section):
             raise ValueError(f"walls.container: the {self.protocol.kind} protocol needs a "
                              "container (box or cylinder)")
         protocol.cross_check(self)
+        self._check_wall_motions(protocol)
         for axis, lo, hi in self.walls.periodic:
             if axis not in range(dim) or not hi > lo:
                 raise ValueError(f"walls.periodic: ({axis}, {lo}, {hi}) needs axis in "
                                  f"0..{dim - 1} and hi > lo [m]")
         return self
+
+    def _check_wall_motions(self, protocol):
+        """ValueError when the engine cannot move a wall as the protocol or a wall of
+        the config asks (hard grains have no servo, rigid ones no piston yet)."""
+        kind = self.engine.kind
+        offered = engines.ENGINES[kind].wall_motions
+        asked = {m: f"protocol {self.protocol.kind}"
+                 for m in protocol.wall_motions(self.protocol)}
+        for where, walls in (("planes", self.walls.planes), ("segments", self.walls.segments)):
+            for k, w in enumerate(walls):
+                asked.setdefault(w.motion.kind, f"walls.{where}[{k}]")
+        for motion, who in asked.items():
+            if motion not in offered:
+                able = [e.kind for e in engines.ENGINES.values() if motion in e.wall_motions]
+                raise ValueError(f"engine.kind = {kind!r} offers no {motion} walls, which "
+                                 f"{who} needs; engines that do: {', '.join(able)}")
 
     @model_validator(mode="after")
     def _unused_material_fields(self):

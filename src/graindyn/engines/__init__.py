@@ -37,6 +37,8 @@ class EngineKind:
       the smallest grain (keys criterion, critical_time_s, fraction, max_fraction,
       suggested_dt_s), ValueError when the settings cannot run.
     summary : one line for ``graindyn info``.
+    wall_motions : the wall motions (core.walls.Motion kinds) it can run; config
+      validation refuses a protocol or a wall that needs another.
     """
 
     kind: str
@@ -44,6 +46,7 @@ class EngineKind:
     build: Callable
     check: Callable
     summary: str
+    wall_motions: tuple = ("fixed", "velocity", "sinusoid", "servo", "piston")
 
 
 ENGINES: dict[str, EngineKind] = {}

@@ -178,6 +178,13 @@ class Protocol:
         a container."""
 
     @classmethod
+    def wall_motions(cls, settings):
+        """The wall motions (core.walls.Motion kinds) the protocol gives walls with
+        ``settings``, beyond "fixed": config validation checks that the engine offers
+        them (engines.EngineKind.wall_motions)."""
+        return set()
+
+    @classmethod
     def materials_named(cls, settings):
         """(where, material name) pairs of the materials ``settings`` name (config
         validation checks that each exists)."""

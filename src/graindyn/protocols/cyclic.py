@@ -90,6 +90,11 @@ class Cyclic(Protocol):
         self.phases = (*preparation(settings, vessel), Cycles(self))
 
     @classmethod
+    def wall_motions(cls, settings):
+        """The loading plate is a piston (a wall of a mass under the cyclic stress)."""
+        return {"piston"}
+
+    @classmethod
     def cross_check(cls, config):
         settings = config.protocol
         settings.check_dim(config.run.dim)

@@ -127,6 +127,11 @@ class Oedometer(Protocol):
         self.phases = (*preparation(settings, vessel), Load(self))
 
     @classmethod
+    def wall_motions(cls, settings):
+        """The piston is a servo or a wall of a mass (``loading``)."""
+        return {settings.loading}
+
+    @classmethod
     def cross_check(cls, config):
         settings = config.protocol
         settings.check_dim(config.run.dim)

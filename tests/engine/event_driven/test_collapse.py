@@ -50,16 +50,28 @@ def test_below_the_critical_restitution_the_cluster_collapses():
     assert np.abs(engine.state.velocities).max() < 1e-12
 
 
-def test_a_grain_bouncing_to_rest_on_a_floor_stops_the_run_with_a_clear_error():
-    """Without a collapse treatment a grain bouncing on a floor under gravity makes
-    infinitely many bounces in a finite time (their heights fall as r^2 per bounce);
-    the engine stops with a SimulationError naming the remedies instead of hanging."""
+def test_a_grain_bouncing_to_rest_on_a_floor_ends_hopping_by_the_tolerance():
+    """Without a collapse treatment a grain bouncing on a floor under gravity would
+    make infinitely many bounces in a finite time (their heights fall as r^2 per
+    bounce), ending in collisions at one instant; the least rebound (events.py) makes
+    it hop by delta = tolerance x radius instead: the run ends, the grain stays within
+    2 delta of the floor, its hops take 2 sqrt(2 delta / g), and the energy balance
+    holds to 1e-12 of the drop's."""
+    from graindyn.analysis.energy import energy_budget
+
     state = gd.State.create([[0.0, 0.0, 5 * RHO]], [RHO], 1000.0)
     engine = EventDriven(state, [gd.Material(restitution=0.5)],
                          walls=[gd.Plane((0, 0, 0), (0, 0, 1), name="floor")])
-    with pytest.raises(SimulationError, match="inelastic collapse.*'tc' or 'speed'"):
-        engine.run(time=1.0)
-    assert engine.state.positions[0, 2] >= RHO * (1 - 1e-9)
+    start = energy_budget(engine)
+    assert engine.run(time=0.1) == "done"
+    hops = engine.wall_collisions
+    engine.run(time=0.01)
+    delta = 1e-9 * RHO
+    assert engine.wall_collisions - hops == pytest.approx(
+        0.01 / (2 * np.sqrt(2 * delta / 9.81)), rel=0.01)
+    assert RHO <= state.positions[0, 2] <= RHO + 2 * delta
+    drop = state.masses[0] * 9.81 * 4 * RHO
+    assert abs(energy_budget(engine)["total"] - start["total"]) < 1e-12 * drop
 
 
 def test_with_the_tc_model_a_bouncing_grain_presses_the_floor_with_its_weight():
@@ -93,3 +105,31 @@ def test_a_speed_dependent_restitution_prevents_the_collapse():
     engine = three_on_a_line(0.07, collapse="speed", collapse_speed=0.5)
     assert engine.run(time=100.0) == "done"
     assert 0 < engine.collisions < 1000
+
+
+def test_hard_grains_deposited_with_the_tc_model_come_to_rest():
+    """Thirty grains (e_n = 0.5, rough) dropped into a box with the TC model reach
+    E_kin / E_pot <= 1e-6: the bed's last hops are those of least rebound, no grain is
+    inside another or below the floor, and the energy balance holds to 1e-9 of the
+    potential energy released."""
+    from graindyn.analysis.energy import energy_budget
+    from graindyn.protocols.prepare import BoxRegion, random_insertion
+
+    rng = np.random.default_rng(5)
+    side = 8 * RHO
+    positions, radii = random_insertion(np.full(30, RHO), BoxRegion(
+        (0, 0, 0), (side, side, 16 * RHO)), rng)
+    state = gd.State.create(positions, radii, 1000.0)
+    engine = EventDriven(state, [gd.Material(restitution=0.5)],
+                         walls=gd.box((0, 0, 0), (side, side, 40 * RHO)),
+                         tangential_restitution=0.0, collapse="tc", contact_duration=3e-5)
+    start = energy_budget(engine)
+    assert engine.run(time=1.0, until=gd.EnergyRatioBelow(1e-6)) == "condition"
+    end = energy_budget(engine)
+    released = start["gravitational"] - end["gravitational"]
+    assert released > 0
+    assert abs(end["total"] - start["total"]) < 1e-9 * released
+    assert np.all(state.positions[:, 2] >= RHO * (1 - 1e-6))
+    d = np.linalg.norm(state.positions[:, None] - state.positions[None], axis=2)
+    np.fill_diagonal(d, np.inf)
+    assert d.min() >= 2 * RHO * (1 - 1e-9)

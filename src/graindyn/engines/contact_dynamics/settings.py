@@ -68,4 +68,5 @@ def check(state, setup, settings: ContactDynamicsEngine):
 CONTACT_DYNAMICS = EngineKind(
     "contact_dynamics", ContactDynamicsEngine, build, check,
     "contact dynamics (Moreau-Jean): rigid grains, Signorini, exact Coulomb friction and "
-    "Newton restitution solved by nonlinear Gauss-Seidel every step")
+    "Newton restitution solved by nonlinear Gauss-Seidel every step",
+    ("fixed", "velocity", "sinusoid", "servo"))

@@ -13,13 +13,15 @@ brought to the pause's time, the walls are put where their motion has them then,
 the events are predicted afresh from there when the run goes on.
 
 Hard grains touch only at instants, so the engine has no lasting contacts: ``contacts``
-and ``wall_contacts`` are the pairs in touch at the pause (within the tolerance), each
-with the mean force of its collisions since the previous pause is not kept per pair:
+and ``wall_contacts`` are the pairs in touch at the pause (within the tolerance), and
 they carry zero force.  What the collisions transmit is in the mean wall forces
 (``walls.force``: the grains' impulse on each wall since the previous pause over its
 duration) and in the collision virial (``virial``), from which the pressure of a gas
-follows (analysis/gas.py).  Walls that need lasting contact forces to move (servo and
-piston walls) are not offered.
+follows (analysis/gas.py).  A grain that comes to rest on a wall or a held grain under
+gravity keeps hopping on it by the tolerance (events.py, least rebound; by g t_c^2/8
+under the TC model), so a deposited bed ends as a bed of grains hopping on each other.
+Walls that need lasting contact forces to move (servo and piston walls) are not
+offered.
 """
 import math
 

@@ -30,7 +30,7 @@ from ..._jit import driver
 from ..soft.integrators.rotation import rotate_quaternion
 from . import flight
 from .calendar import build_heap, reschedule
-from .collision import collision_impulse, contact_velocity, restitution_now
+from .collision import TC as TC_MODEL, collision_impulse, contact_velocity, restitution_now
 
 NONE, PAIR, WALL, RECHECK = 0, 1, 2, 3
 # clock (float64) slots
@@ -281,6 +281,42 @@ def predict_crossed(g, cal, cells, walls, box, clock, i, now, face):
 
 
 @driver
+def _least_rebound(g, clock, counters, i, mx, my, mz):
+    """The smallest speed [m/s] at which grain i leaves a support of infinite mass (a
+    wall, a held grain) whose normal (mx, my, mz) points from the support to the grain:
+    sqrt(2 |g.m| delta), delta = tolerance x radius, and under the TC model at least
+    |g.m| t_c / 2 (a hop lasting t_c) when gravity presses the grain onto it; 0 when it
+    pulls the grain away.  A grain coming to rest on a support would otherwise collide
+    with it again and again at one instant (its normal speed zero to round-off): it
+    hops by delta instead, gaining m |g.m| delta, which is booked as negative normal
+    dissipation."""
+    press = -(g.gravity[0] * mx + g.gravity[1] * my + g.gravity[2] * mz)
+    if press <= 0.0:
+        return 0.0
+    least = math.sqrt(2.0 * press * clock[TOLERANCE] * g.radii[i])
+    if counters[COLLAPSE_MODEL] == TC_MODEL:
+        least = max(least, 0.5 * press * clock[CONTACT_DURATION])
+    return least
+
+
+@driver
+def _lift(g, clock, counters, i, mx, my, mz, ux, uy, uz):
+    """Make grain i leave a support (normal (mx, my, mz) from the support to it, the
+    support's velocity (ux, uy, uz)) at least at _least_rebound; returns the kinetic
+    energy this adds in the support's frame [J]."""
+    least = _least_rebound(g, clock, counters, i, mx, my, mz)
+    v = g.velocities[i]
+    out = (v[0] - ux) * mx + (v[1] - uy) * my + (v[2] - uz) * mz
+    if out >= least:
+        return 0.0
+    push = least - out
+    v[0] += push * mx
+    v[1] += push * my
+    v[2] += push * mz
+    return 0.5 * g.masses[i] * (least * least - out * out)
+
+
+@driver
 def _since(g, i, now):
     return now - g.last_collision[i]
 
@@ -320,6 +356,10 @@ def _pair_collision(g, tables, clock, counters, box, i, j, now):
         g.velocities[j, k] -= impulse[k] * inv_mj
         g.angular_velocities[i, k] += ri * torque[k] * inv_ii
         g.angular_velocities[j, k] += rj * torque[k] * inv_ij
+    if g.fixed[j] != 0:
+        dn -= _lift(g, clock, counters, i, -nx, -ny, -nz, 0.0, 0.0, 0.0)
+    elif g.fixed[i] != 0:
+        dn -= _lift(g, clock, counters, j, nx, ny, nz, 0.0, 0.0, 0.0)
     clock[DISS_N] += dn
     clock[DISS_T] += ds
     clock[VIRIAL] += dx * jx + dy * jy + dz * jz
@@ -363,6 +403,7 @@ def _wall_collision(g, walls, tables, clock, counters, i, w, now):
         v[k] += impulse[k] * inv_m
         s[k] += r * torque[k] * inv_i
         walls.impulse[w, k] -= impulse[k]
+    dn -= _lift(g, clock, counters, i, mx, my, mz, wx, wy, wz)
     after = 0.5 * (g.masses[i] * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
                    + g.inertias[i] * (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]))
     clock[DISS_N] += dn

@@ -64,4 +64,5 @@ def check(state, setup, settings: EventDrivenEngine):
 EVENT_DRIVEN = EngineKind(
     "event_driven", EventDrivenEngine, build, check,
     "event-driven molecular dynamics: hard spheres and disks, instantaneous collisions "
-    "with normal and tangential restitution, analytic free flight, an event calendar")
+    "with normal and tangential restitution, analytic free flight, an event calendar",
+    ("fixed", "velocity", "sinusoid"))
