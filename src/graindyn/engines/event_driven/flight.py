@@ -119,7 +119,8 @@ def wall_time(kind, geometry, base, motion_kind, motion, w, now, x, y, z, vx, vy
     horizon.  Closed forms for planes fixed or at constant velocity (started) and for a
     fixed cylinder along g; conservative advancement otherwise (module docstring), with
     gap'' >= n.g - A w^2 |n.u| on a vibrating plane and |gap'| <= |v(t)| + |v_wall| on
-    the others.  A gap below ``tolerance`` [m] counts as a contact."""
+    the others, aiming at a gap of ``tolerance`` [m]; a gap below two tolerances with
+    the grain approaching counts as a contact."""
     mk = motion_kind[w]
     started = motion[w, 7] <= now
     if kind[w] == PLANE and (mk == FIXED or (mk == VELOCITY and started)):
@@ -173,7 +174,8 @@ def wall_time(kind, geometry, base, motion_kind, motion, w, now, x, y, z, vx, vy
         g, nx, ny, nz, wx, wy, wz = wall_gap(kind, geometry, base, motion_kind, motion,
                                              w, now + t, px, py, pz, radius)
         rate = nx * (ux - wx) + ny * (uy - wy) + nz * (uz - wz)
-        if g <= tolerance and rate < 0.0:
+        # the steps aim at a gap of one tolerance: within two it is a contact
+        if g <= 2.0 * tolerance and rate < 0.0:
             return t, COLLIDE
         bound_speed = math.sqrt(ux * ux + uy * uy + uz * uz) + wall_speed
         if kind[w] == PLANE:
