@@ -21,6 +21,7 @@ from .config import ConfigError, build, dumps, load
 from .config.models import Config
 from .core.state import State
 from .core.triggers import Periodic
+from .engines import ENGINES
 from .output import checkpoint
 from .output.progress import progress_bar
 from .output.rundir import RunDirectory, Series
@@ -38,12 +39,13 @@ class RunInterrupted(RuntimeError):
 
 def check(config: Config):
     """Everything about a config that can be checked without simulating: the contact
-    model against the materials, the time step, the backend.  ConfigError otherwise;
-    returns the time-step report."""
-    try:
-        build.contact_model(config).pair_table(build.materials(config))
-    except ValueError as err:
-        raise ConfigError(f"contact: {err}") from None
+    model against the materials (for an engine that reads it), the time step, the
+    backend.  ConfigError otherwise; returns the time-step report."""
+    if ENGINES[config.engine.kind].contact_laws:
+        try:
+            build.contact_model(config).pair_table(build.materials(config))
+        except ValueError as err:
+            raise ConfigError(f"contact: {err}") from None
     if config.run.backend == "gpu":
         from .engines.soft.gpu import unavailable
         reason = unavailable()

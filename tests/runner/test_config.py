@@ -271,3 +271,17 @@ def test_an_engine_that_cannot_move_the_protocols_walls_is_refused(example, kind
                                           "walls, which protocol .* needs; engines that "
                                           "do: soft"):
         validate(raw)
+
+
+def test_the_contact_laws_are_checked_only_for_an_engine_that_reads_them():
+    """Hard grains read the materials' restitution only: a material the soft engine's
+    Tsuji damping would refuse (no restitution) runs on the event-driven engine, and is
+    refused with the soft one."""
+    from graindyn.runner import check
+
+    raw = load("examples/cooling_gas.toml").model_dump(exclude_none=True)
+    raw["materials"][0].pop("restitution")
+    assert check(validate(raw))["critical_time_s"] is None
+    raw["engine"] = {"kind": "soft"}
+    with pytest.raises(ConfigError, match="damping 'tsuji' needs restitution"):
+        check(validate(raw))

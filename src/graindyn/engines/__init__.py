@@ -39,6 +39,8 @@ class EngineKind:
     summary : one line for ``graindyn info``.
     wall_motions : the wall motions (core.walls.Motion kinds) it can run; config
       validation refuses a protocol or a wall that needs another.
+    contact_laws : whether it reads the ``[contact]`` laws (checked against the
+      materials before a run only then).
     """
 
     kind: str
@@ -47,6 +49,7 @@ class EngineKind:
     check: Callable
     summary: str
     wall_motions: tuple = ("fixed", "velocity", "sinusoid", "servo", "piston")
+    contact_laws: bool = True
 
 
 ENGINES: dict[str, EngineKind] = {}

@@ -65,4 +65,4 @@ EVENT_DRIVEN = EngineKind(
     "event_driven", EventDrivenEngine, build, check,
     "event-driven molecular dynamics: hard spheres and disks, instantaneous collisions "
     "with normal and tangential restitution, analytic free flight, an event calendar",
-    ("fixed", "velocity", "sinusoid"))
+    ("fixed", "velocity", "sinusoid"), contact_laws=False)
