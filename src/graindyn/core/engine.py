@@ -32,6 +32,33 @@ ENERGIES = {
 }
 
 
+def checked_gravity(value, dim):
+    """``value`` as a gravity vector (3,) [m/s^2] for grains in ``dim`` D: what every
+    engine's gravity setter takes; ValueError unless a finite 3-vector with zero z
+    component in 2D."""
+    gravity = np.asarray(value, dtype=np.float64)
+    if gravity.shape != (3,) or not np.all(np.isfinite(gravity)) \
+            or (dim == 2 and gravity[2] != 0):
+        raise ValueError(f"gravity must be a finite 3-vector [m/s^2], with zero z component "
+                         f"in 2D, got {value}")
+    return gravity
+
+
+def copy_into(targets, arrays):
+    """Put the snapshot ``arrays`` (name -> array) into an engine's own ``targets``
+    (name -> array, the engine's arrays of those names), in place; ValueError naming
+    what is missing or does not fit (an engine's restore)."""
+    missing = [k for k in targets if k not in arrays]
+    if missing:
+        raise ValueError(f"snapshot lacks {missing}")
+    for name, target in targets.items():
+        value = np.asarray(arrays[name])
+        if value.shape != target.shape or value.dtype != target.dtype:
+            raise ValueError(f"snapshot array {name}: {value.dtype}{value.shape} does not "
+                             f"fit {target.dtype}{target.shape}")
+        target[...] = value
+
+
 class SimulationError(RuntimeError):
     """A run stopped because the physics broke down (NaN, excessive overlap)."""
 

@@ -12,11 +12,12 @@ import warnings
 
 import numpy as np
 
-from ...core.engine import Contacts, SimulationError, WallContacts
+from ...core.engine import (Contacts, SimulationError, WallContacts, checked_gravity,
+                            copy_into)
 from ...core.species import Material
 from ...core.walls import PISTON, Walls
 from ...core.triggers import NO_CONDITION, pauses
-from ..soft.energy import gravitational_energy, kinetic_energy
+from ..soft.energy import rigid_energies
 from . import stepping as st
 from .bundles import Grains, PeriodicBox, Tables, WallBundle, new_work
 from .detection import new_lists
@@ -54,15 +55,6 @@ def material_tables(materials):
                   friction=np.sqrt(mu[:, None, :] * mu[None, :, :]))
 
 
-def _gravity(value, dim):
-    gravity = np.asarray(value, dtype=np.float64)
-    if gravity.shape != (3,) or not np.all(np.isfinite(gravity)) \
-            or (dim == 2 and gravity[2] != 0):
-        raise ValueError(f"gravity must be a finite 3-vector [m/s^2], with zero z component "
-                         f"in 2D, got {value}")
-    return gravity
-
-
 class ContactDynamics:
     """Rigid grains by contact dynamics (Moreau, Jean; Pérez Sec. 2 Eq. 11-12), SI units.
 
@@ -97,7 +89,7 @@ class ContactDynamics:
             raise ValueError(f"wall material ids must be in 0..{n_mat - 1}")
         for k in range(len(self.walls)):
             self._check_motion(k, self.walls.motion_kind[k])
-        gravity = _gravity(gravity, state.dim)
+        gravity = checked_gravity(gravity, state.dim)
         self.tables = material_tables(self.materials)
         if dt is None:
             dt = suggested_time_step(state, gravity)["suggested_dt_s"]
@@ -313,12 +305,7 @@ class ContactDynamics:
         pairs = np.asarray(arrays["lists/partners"]).size
         wall_candidates = np.asarray(arrays["lists/wall_ids"]).size
         self._allocate(pairs, wall_candidates)
-        for name, target in self._arrays().items():
-            value = np.asarray(arrays[name])
-            if value.shape != target.shape or value.dtype != target.dtype:
-                raise ValueError(f"snapshot array {name}: {value.dtype}{value.shape} does "
-                                 f"not fit {target.dtype}{target.shape}")
-            target[...] = value
+        copy_into(self._arrays(), arrays)
         # the transient arrays are rewritten before use; the reverse lists by a rebuild
         self.state.time = self.time
         self.state.step = self.step
@@ -367,13 +354,8 @@ class ContactDynamics:
         """The energies of engine.ENERGIES [J]: kinetic, rotational and gravitational of
         the free grains, elastic 0 (rigid grains), the dissipation split and the wall work
         the loop accumulates (stepping.py)."""
-        translational, rotational = kinetic_energy(self.state)
-        return {"kinetic": translational, "rotational": rotational,
-                "gravitational": gravitational_energy(self.state, self.gravity),
-                "elastic": 0.0,
-                "dissipated_normal": float(self.clock[st.DISS_N]),
-                "dissipated_tangential": float(self.clock[st.DISS_T]),
-                "wall_work": float(self.clock[st.WALL_WORK])}
+        return rigid_energies(self.state, self.gravity, self.clock[st.DISS_N],
+                              self.clock[st.DISS_T], self.clock[st.WALL_WORK])
 
     # ------------------------------------------------------------------ changes by hand
     @property
@@ -383,7 +365,7 @@ class ContactDynamics:
 
     @gravity.setter
     def gravity(self, value):
-        self.clock[st.GX:st.GZ + 1] = _gravity(value, self.state.dim)
+        self.clock[st.GX:st.GZ + 1] = checked_gravity(value, self.state.dim)
 
     def _forget(self, chosen):
         """Zero the impulses of every listed contact of the grains ``chosen`` (N,) bool."""

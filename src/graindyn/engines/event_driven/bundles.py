@@ -1,6 +1,6 @@
 """The bundles of arrays the event loop (events.py) is handed, by name (namedtuples of
 arrays: numba compiles them as tuples and reads fields by name).  N grains, W walls,
-M materials, C cells."""
+M materials, C cells; the periodic box is contact_dynamics.bundles.PeriodicBox."""
 from typing import NamedTuple
 
 import numpy as np
@@ -70,13 +70,6 @@ class WallBundle(NamedTuple):
     motion: np.ndarray
     material: np.ndarray
     impulse: np.ndarray
-
-
-class PeriodicBox(NamedTuple):
-    """flag (3,) int64, lo (3,) [m], length (3,) [m] of the periodic directions."""
-    flag: np.ndarray
-    lo: np.ndarray
-    length: np.ndarray
 
 
 class Tables(NamedTuple):

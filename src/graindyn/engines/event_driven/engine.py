@@ -27,14 +27,16 @@ import math
 
 import numpy as np
 
-from ...core.engine import Contacts, SimulationError, WallContacts
+from ...core.engine import (Contacts, SimulationError, WallContacts, checked_gravity,
+                            copy_into)
 from ...core.species import Material
 from ...core.triggers import NO_CONDITION, pauses
 from ...core.walls import PISTON, SERVO, Walls
 from ..contact_dynamics.stepping import CONDITION, NAN, _stop
-from ..soft.energy import gravitational_energy, kinetic_energy
+from ..soft.energy import rigid_energies
 from . import events as ev
-from .bundles import Calendar, Cells, Grains, PeriodicBox, Tables, WallBundle
+from ..contact_dynamics.bundles import PeriodicBox
+from .bundles import Calendar, Cells, Grains, Tables, WallBundle
 from .collision import COLLAPSE
 from .flight import wall_displacement
 
@@ -49,15 +51,6 @@ def restitution_table(materials):
     if np.any((e < 0) | (e > 1)):
         raise ValueError(f"restitution must be in [0, 1], got {e.tolist()}")
     return np.sqrt(np.outer(e, e))
-
-
-def _gravity(value, dim):
-    gravity = np.asarray(value, dtype=np.float64)
-    if gravity.shape != (3,) or not np.all(np.isfinite(gravity)) \
-            or (dim == 2 and gravity[2] != 0):
-        raise ValueError(f"gravity must be a finite 3-vector [m/s^2], with zero z component "
-                         f"in 2D, got {value}")
-    return gravity
 
 
 class EventDriven:
@@ -118,7 +111,7 @@ class EventDriven:
         self.sync_interval = sync_interval
         self.clock = np.zeros(ev.NCLOCK)
         self.clock[ev.TIME] = state.time
-        self.clock[ev.GX:ev.GZ + 1] = _gravity(gravity, state.dim)
+        self.clock[ev.GX:ev.GZ + 1] = checked_gravity(gravity, state.dim)
         self.clock[ev.TANGENTIAL] = tangential_restitution
         self.clock[ev.COLLAPSE_SPEED] = collapse_speed or 0.0
         self.clock[ev.CONTACT_DURATION] = contact_duration or 0.0
@@ -354,15 +347,7 @@ class EventDriven:
     def restore(self, arrays):
         """Put a ``snapshot`` back (an engine built from the same inputs); ValueError
         naming what is missing or does not fit."""
-        missing = [k for k in self._arrays() if k not in arrays]
-        if missing:
-            raise ValueError(f"snapshot lacks {missing}")
-        for name, target in self._arrays().items():
-            value = np.asarray(arrays[name])
-            if value.shape != target.shape or value.dtype != target.dtype:
-                raise ValueError(f"snapshot array {name}: {value.dtype}{value.shape} does "
-                                 f"not fit {target.dtype}{target.shape}")
-            target[...] = value
+        copy_into(self._arrays(), arrays)
         self.state.time = self.time
         self.state.step = self.step
 
@@ -405,13 +390,8 @@ class EventDriven:
         """The energies of engine.ENERGIES [J]: kinetic, rotational and gravitational of
         the free grains, elastic 0 (hard grains), the dissipation of the collisions'
         normal and tangential parts, and the work of moving walls."""
-        translational, rotational = kinetic_energy(self.state)
-        return {"kinetic": translational, "rotational": rotational,
-                "gravitational": gravitational_energy(self.state, self.gravity),
-                "elastic": 0.0,
-                "dissipated_normal": float(self.clock[ev.DISS_N]),
-                "dissipated_tangential": float(self.clock[ev.DISS_T]),
-                "wall_work": float(self.clock[ev.WALL_WORK])}
+        return rigid_energies(self.state, self.gravity, self.clock[ev.DISS_N],
+                              self.clock[ev.DISS_T], self.clock[ev.WALL_WORK])
 
     # ------------------------------------------------------------------ changes by hand
     @property
@@ -421,7 +401,7 @@ class EventDriven:
 
     @gravity.setter
     def gravity(self, value):
-        self.clock[ev.GX:ev.GZ + 1] = _gravity(value, self.state.dim)
+        self.clock[ev.GX:ev.GZ + 1] = checked_gravity(value, self.state.dim)
 
     def relocate(self, indices, positions, velocities, angular_velocities=None):
         """Move grains ``indices`` to ``positions`` (K, 3) [m] with ``velocities`` (K, 3)

@@ -59,6 +59,18 @@ def kinetic_energy(state):
             float(0.5 * np.sum(state.inertias[free] * w2[free])))
 
 
+def rigid_energies(state, gravity, dissipated_normal, dissipated_tangential, wall_work):
+    """The energies of core.engine.ENERGIES [J] of grains that store no elastic energy
+    (rigid or hard grains): kinetic, rotational and gravitational of the free grains,
+    elastic 0, and the dissipation and wall work an engine accumulated."""
+    translational, rotational = kinetic_energy(state)
+    return {"kinetic": translational, "rotational": rotational,
+            "gravitational": gravitational_energy(state, gravity), "elastic": 0.0,
+            "dissipated_normal": float(dissipated_normal),
+            "dissipated_tangential": float(dissipated_tangential),
+            "wall_work": float(wall_work)}
+
+
 def gravitational_energy(state, gravity):
     """-sum m g.r of the free grains [J] (zero at the origin)."""
     free = state.fixed == 0

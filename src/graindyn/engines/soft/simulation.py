@@ -10,7 +10,8 @@ import math
 import numba
 import numpy as np
 
-from ...core.engine import Contacts, OverlapError, SimulationError, WallContacts
+from ...core.engine import (Contacts, OverlapError, SimulationError, WallContacts,
+                            checked_gravity)
 from ...core.neighbors import list_owners
 from ...core.species import ContactModel, Material
 from ...core.triggers import NO_CONDITION, pauses
@@ -30,17 +31,6 @@ _TRANSIENT = ("pairs/own",)
 
 # the orientations the loop sees when they are not followed (passes.turn)
 _NOT_TURNED = np.zeros((0, 4))
-
-
-def _gravity(value, dim):
-    """``value`` as a gravity vector (3,) [m/s^2]; ValueError unless it is a finite
-    3-vector with zero z component in 2D."""
-    gravity = np.asarray(value, dtype=np.float64)
-    if gravity.shape != (3,) or not np.all(np.isfinite(gravity)) \
-            or (dim == 2 and gravity[2] != 0):
-        raise ValueError(f"gravity must be a finite 3-vector [m/s^2], with zero z component "
-                         f"in 2D, got {value}")
-    return gravity
 
 
 def _with_touching_marks(arrays, width):
@@ -120,7 +110,7 @@ class Simulation:
         self.walls = walls if isinstance(walls, Walls) else Walls(walls, periodic)
         if np.any(self.walls.material >= n_mat):
             raise ValueError(f"wall material ids must be in 0..{n_mat - 1}")
-        gravity = _gravity(gravity, state.dim)
+        gravity = checked_gravity(gravity, state.dim)
         self.params = self.model.pair_table(self.materials)
         self.model_ids = self.model.ids()
         self.dt_report = time_step_report(state, self.materials, self.model, dt, integrator)
@@ -604,7 +594,7 @@ class Simulation:
 
     @gravity.setter
     def gravity(self, value):
-        self.clock[loop.GX:loop.GZ + 1] = _gravity(value, self.state.dim)
+        self.clock[loop.GX:loop.GZ + 1] = checked_gravity(value, self.state.dim)
         self.counters[loop.PRIMED] = 0
 
     def relocate(self, indices, positions, velocities, angular_velocities=None):
