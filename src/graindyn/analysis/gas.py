@@ -42,13 +42,6 @@ def collision_pressure(n, temperature, virial, duration, volume, dim):
     return (n * temperature + virial / (dim * duration)) / volume
 
 
-def packing_fraction_of(state, volume):
-    """Solid fraction of the grains in a volume [m^3] (2D: area [m^2])."""
-    r = state.radii
-    solid = np.sum(4.0 / 3.0 * math.pi * r**3) if state.dim == 3 else np.sum(math.pi * r**2)
-    return float(solid / volume)
-
-
 def compressibility(phi, dim):
     """The compressibility factor Z = P V / (N T) of elastic hard spheres (Carnahan &
     Starling 1969: (1 + phi + phi^2 - phi^3) / (1 - phi)^3) or disks (Henderson 1975:
@@ -74,12 +67,15 @@ def enskog_collision_rate(number_density, diameter, temperature, mass, phi, dim)
         math.pi * temperature / mass)
 
 
-def speed_histogram(state, bins=50):
-    """The distribution of the free grains' velocity components about their mean:
-    (edges [m/s], density [s/m]) of all components pooled, to compare with the normal
-    law of variance T/m (a Maxwellian) or the overpopulated tails of a cooling gas."""
+def velocity_distribution(state, bins=50):
+    """The distribution of the free grains' velocity components about their mean,
+    scaled by the thermal speed sqrt(T/m) of each grain (T the granular temperature):
+    (edges [-], density [-]) of all components pooled, to compare with the standard
+    normal law (a Maxwellian) or the overpopulated tails of a cooling gas."""
     free = _free(state)
     v = state.velocities[free, : state.dim]
-    v = v - v.mean(axis=0)
-    density, edges = np.histogram(v.reshape(-1), bins=bins, density=True)
+    v = v - (state.masses[free] @ v) / state.masses[free].sum()
+    temperature = granular_temperature(state)[0]
+    scaled = v * np.sqrt(state.masses[free][:, None] / temperature)
+    density, edges = np.histogram(scaled.reshape(-1), bins=bins, density=True)
     return edges, density

@@ -74,3 +74,33 @@ def test_the_pressure_and_collision_rate_of_an_elastic_gas(dim, phi):
     rate = 2 * (engine.collisions - c0) / (s.n * duration)
     assert rate == pytest.approx(gas.enskog_collision_rate(
         s.n / volume, 2 * R, temperature, s.masses[0], phi, dim), rel=0.02)
+
+
+def test_an_elastic_gas_relaxes_to_the_maxwellian():
+    """Grains started at one speed in random directions (far from a Maxwellian) reach
+    the Maxwell-Boltzmann distribution after about 10 collisions each: the scaled
+    velocity components pass a KS test against the standard normal, and the
+    histogram of bins 0.5 wide matches the normal density within 10 % (3 sigma of its
+    counts) for |u| < 1.5."""
+    from scipy import stats
+
+    engine, volume = periodic_gas(2000, 0.2, 3, seed=3)
+    s = engine.state
+    rng = np.random.default_rng(4)
+    direction = rng.normal(size=(s.n, 3))
+    direction /= np.linalg.norm(direction, axis=1)[:, None]
+    s.velocities[:] = direction * np.sqrt(3 * TEMPERATURE / s.masses[0])
+    s.velocities[:] -= s.velocities.mean(axis=0)
+    start = gas.granular_temperature(s)[0]
+    scaled = (s.velocities * np.sqrt(s.masses[0] / start)).reshape(-1)
+    assert stats.kstest(scaled, "norm").pvalue < 1e-6          # not a Maxwellian yet
+    per_grain = gas.enskog_collision_rate(s.n / volume, 2 * R, TEMPERATURE, s.masses[0],
+                                          0.2, 3)
+    engine.run(time=10 / per_grain)
+    temperature = gas.granular_temperature(s)[0]
+    scaled = (s.velocities * np.sqrt(s.masses[0] / temperature)).reshape(-1)
+    assert stats.kstest(scaled, "norm").pvalue > 1e-3
+    edges, density = gas.velocity_distribution(s, bins=np.linspace(-6, 6, 25))
+    centres = 0.5 * (edges[1:] + edges[:-1])
+    near = np.abs(centres) < 1.5
+    np.testing.assert_allclose(density[near], stats.norm.pdf(centres[near]), rtol=0.1)
