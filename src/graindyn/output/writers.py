@@ -16,9 +16,9 @@ from .vtk import VtkSeries
 
 def series_row(engine):
     """One row of the standard time series (column names carry the units): energies,
-    largest speed, coordination, granular temperatures (analysis.gas), the collisions
-    counted so far (grain pairs and walls) for the engines that count them, and the
-    force on each wall."""
+    largest speed, coordination, granular temperatures (analysis.gas) and the force on
+    each wall; the same columns for every engine and backend (collision counts, which
+    not every engine keeps, are recorded by the protocols that need them)."""
     e = energy_budget(engine)
     v = engine.state.velocities
     speed = np.sqrt(np.max(np.einsum("ij,ij->i", v, v), initial=0.0))
@@ -30,9 +30,6 @@ def series_row(engine):
            "coordination [-]": coordination_number(engine)}
     row["temperature [J]"], row["rotational_temperature [J]"] = \
         granular_temperature(engine.state)
-    if hasattr(engine, "collisions"):
-        row["collisions [-]"] = engine.collisions
-        row["wall_collisions [-]"] = engine.wall_collisions
     for k, wall in enumerate(engine.walls.walls):
         row[f"force_{wall.name} [N]"] = engine.walls.normal_force(k)
     return row
