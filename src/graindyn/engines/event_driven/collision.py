@@ -28,8 +28,6 @@ Inelastic collapse (Pérez after Eq. 6: "let e_n tend to 1 if very small velocit
 appear"): ``restitution_now`` gives the normal restitution of one collision under the
 models of ``COLLAPSE``.
 """
-import math
-
 from ..._jit import scalar
 
 # the inelastic-collapse treatments (engine setting ``collapse``)
@@ -93,9 +91,3 @@ def contact_velocity(nx, ny, nz, vax, vay, vaz, wax, way, waz, ra, vbx, vby, vbz
     return (vax - vbx + cy * nz - cz * ny,
             vay - vby + cz * nx - cx * nz,
             vaz - vbz + cx * ny - cy * nx)
-
-
-@scalar
-def speed(x, y, z):
-    """|(x, y, z)|."""
-    return math.sqrt(x * x + y * y + z * z)
