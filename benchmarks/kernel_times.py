@@ -31,17 +31,19 @@ def main(argv):
     sim = bed(state_file, cyl, size, young, rest, dt, skin)
     sim.run(steps=500)
     args = (sim.model_ids, sim.params, sim._law, sim.clock, sim._grains(), sim._walls(), sim._periodic(), sim.pairs, sim.counters,
-            sim.integrator_history, sim.block_scratch)
+            sim.integrator_history, sim.block_scratch, sim.images)
 
     @numba.njit(_nrt=False)   # as the time loop (_jit.driver): no reference counting
-    def t_due(reps, model, params, law, clock, g, w, p, pairs, counters, history, scratch):
+    def t_due(reps, model, params, law, clock, g, w, p, pairs, counters, history, scratch,
+              images):
         s = 0
         for _ in range(reps):
             s += loop.rebuild_due(clock, w.offset, w.reference_offset, w.velocity)
         return s
 
     @numba.njit(_nrt=False)
-    def t_drift(reps, model, params, law, clock, g, w, p, pairs, counters, history, scratch):
+    def t_drift(reps, model, params, law, clock, g, w, p, pairs, counters, history, scratch,
+                images):
         for _ in range(reps):
             before_force(counters[loop.INTEGRATOR], np.int64(0), clock[loop.DT],
                          counters[loop.HISTORY_STEPS] > 0, g.positions, g.velocities,
@@ -50,7 +52,7 @@ def main(argv):
 
     @numba.njit(_nrt=False)
     def t_part(reps, part, model, params, law, clock, g, w, p, pairs, counters, history,
-               scratch):
+               scratch, images):
         s = 0.0
         if counters[loop.DIM] == 2:
             part |= PLANAR
@@ -66,17 +68,18 @@ def main(argv):
         return s
 
     @numba.njit(_nrt=False)
-    def t_forces(reps, model, params, law, clock, g, w, p, pairs, counters, history, scratch):
+    def t_forces(reps, model, params, law, clock, g, w, p, pairs, counters, history, scratch,
+                 images):
         s = 0.0
         for _ in range(reps):
-            s += loop.evaluate_forces(model, params, law, g, pairs, w, p,
+            s += loop.evaluate_forces(model, params, law, g, pairs, w, p, images,
                                       clock[loop.GX:loop.GZ + 1], clock[loop.DT],
                                       scratch.size, counters[loop.DIM])[2]
         return s
 
     @numba.njit(_nrt=False)
     def t_correct(reps, drift_next, model, params, law, clock, g, w, p, pairs, counters,
-                  history, scratch):
+                  history, scratch, images):
         s = 0.0
         for _ in range(reps):
             s += loop._after(counters[loop.INTEGRATOR], np.int64(0), clock[loop.DT], counters,

@@ -119,6 +119,29 @@ class WallContacts(NamedTuple):
     force = property(_whole_force)
 
 
+class ImageContacts(NamedTuple):
+    """The touching contacts (K of them) between grains and the mirror images of grains
+    that symmetry planes make (core/symmetry.py), each seen from the grain it acts on.
+
+    grain : (K,) int64 the grain;  image_of : (K,) int64 the grain whose image it
+      touches (itself, for its own image);  mask : (K,) int64 the mirrored axes (bit d
+      for axis d).
+    branch : (K, 3) [m] from the centre of the grain to the contact point.
+    normal_force, tangential_force, normal : as for Contacts, n from the image to the
+      grain.
+    """
+
+    grain: np.ndarray
+    image_of: np.ndarray
+    mask: np.ndarray
+    branch: np.ndarray
+    normal_force: np.ndarray
+    tangential_force: np.ndarray
+    normal: np.ndarray
+
+    force = property(_whole_force)
+
+
 @runtime_checkable
 class Engine(Protocol):
     """What the layers above an engine may use of it.  The engine owns its arrays:

@@ -69,7 +69,7 @@ def grid_from_extent(low, high, n, cutoff, periodic_flag, periodic_lo, periodic_
 
 
 @kernel
-def _grid(positions, cutoff, periodic_flag, periodic_lo, periodic_length):
+def cell_grid(positions, cutoff, periodic_flag, periodic_lo, periodic_length):
     """Cell grid of the current positions: (origin, size, counts)."""
     low = np.empty(3)
     high = np.empty(3)
@@ -87,7 +87,7 @@ def _grid(positions, cutoff, periodic_flag, periodic_lo, periodic_length):
 
 
 @scalar
-def _cell_of(x, lo, size, count):
+def cell_of(x, lo, size, count):
     c = int((x - lo) / size)
     return min(max(c, 0), count - 1)
 
@@ -95,13 +95,13 @@ def _cell_of(x, lo, size, count):
 @scalar
 def cell_id(x, y, z, origin, size, counts):
     """Index of the cell holding the point (x, y, z) (points outside go to the edge)."""
-    return (_cell_of(x, origin[0], size[0], counts[0]) * counts[1]
-            + _cell_of(y, origin[1], size[1], counts[1])) * counts[2] \
-        + _cell_of(z, origin[2], size[2], counts[2])
+    return (cell_of(x, origin[0], size[0], counts[0]) * counts[1]
+            + cell_of(y, origin[1], size[1], counts[1])) * counts[2] \
+        + cell_of(z, origin[2], size[2], counts[2])
 
 
 @kernel
-def _cell_sort(positions, origin, size, counts):
+def cell_sort(positions, origin, size, counts):
     """Counting sort of grains by cell: (cell_start (C+1), cell_items (N), cell (N));
     within a cell the grains are in increasing index."""
     n = positions.shape[0]
@@ -212,7 +212,7 @@ def carry_row(i, start, partners, history, new_start, new_partners, new_history)
 
 
 @parallel
-def _carry_history(start, partners, history, new_start, new_partners, new_history):
+def carry_history(start, partners, history, new_start, new_partners, new_history):
     for i in prange(new_start.size - 1):
         carry_row(i, start, partners, history, new_start, new_partners, new_history)
 
@@ -292,9 +292,9 @@ def rebuild(positions, radii, skin, periodic_flag, periodic_lo, periodic_length,
     n = positions.shape[0]
     wrap_positions(positions, periodic_flag, periodic_lo, periodic_length)
     cutoff = 2.0 * radii.max() + skin
-    origin, size, counts = _grid(positions, cutoff, periodic_flag, periodic_lo,
+    origin, size, counts = cell_grid(positions, cutoff, periodic_flag, periodic_lo,
                                  periodic_length)
-    cell_start, cell_items, cell = _cell_sort(positions, origin, size, counts)
+    cell_start, cell_items, cell = cell_sort(positions, origin, size, counts)
     needed = _count_pairs(positions, radii, skin, cell, counts, cell_start, cell_items,
                           periodic_flag, periodic_length, scratch_start)
     # write as a typed bool, not a literal: one compile for both calls
@@ -305,7 +305,7 @@ def rebuild(positions, radii, skin, periodic_flag, periodic_lo, periodic_length,
         return needed, wall_needed
     _fill_pairs(positions, radii, skin, cell, counts, cell_start, cell_items,
                 periodic_flag, periodic_length, scratch_start, scratch_partners)
-    _carry_history(start, partners, history, scratch_start, scratch_partners, scratch_history)
+    carry_history(start, partners, history, scratch_start, scratch_partners, scratch_history)
     start[:] = scratch_start
     partners[:needed] = scratch_partners[:needed]
     history[:needed] = scratch_history[:needed]
@@ -313,7 +313,7 @@ def rebuild(positions, radii, skin, periodic_flag, periodic_lo, periodic_length,
     list_owners(start, n, scratch_partners)
     _wall_candidates(positions, radii, skin, wall_kind, wall_geometry, wall_offset,
                      scratch_wall_start, scratch_wall_ids, np.bool_(True))
-    _carry_history(wall_start, wall_ids, wall_history, scratch_wall_start, scratch_wall_ids,
+    carry_history(wall_start, wall_ids, wall_history, scratch_wall_start, scratch_wall_ids,
                    scratch_wall_history)
     wall_start[:] = scratch_wall_start
     wall_ids[:wall_needed] = scratch_wall_ids[:wall_needed]

@@ -10,7 +10,7 @@ touching mark, contacts.touch), B blocks of grains
 (contacts.block_count).  Lists are CSR: the contacts grain i lists are slots
 start[i]..start[i + 1] - 1.
 
-The field names of Pairs and WallPairs are also the names of their arrays in a
+The field names of Pairs, WallPairs and Images are also the names of their arrays in a
 checkpoint ("pairs/start", "wall_contacts/ids": Simulation.snapshot); the GPU keys its
 device arrays by (group, field name) (engines/soft/gpu/layout.py).
 """
@@ -93,6 +93,34 @@ class WallPairs(NamedTuple):
     force : (Q, 3) float64 [N] force of the wall on the grain
     torque : (Q, 3) float64 [N m] torque of the wall on the grain
     """
+    start: np.ndarray
+    ids: np.ndarray
+    history: np.ndarray
+    scratch_start: np.ndarray
+    scratch_ids: np.ndarray
+    scratch_history: np.ndarray
+    force: np.ndarray
+    torque: np.ndarray
+
+
+class Images(NamedTuple):
+    """The symmetry planes and the list of mirror-image contacts they make, with its
+    contact state (Simulation.images; core/symmetry.py builds it and states the
+    geometry).
+
+    flag : (3,) int64, 1 along an axis with a symmetry plane;  at : (3,) float64 [m] its
+      coordinate
+    start : (N + 1,) int64 CSR start of each grain's image candidates
+    ids : (I,) uint32 code j * symmetry.MASKS + mask of each candidate: the grain j
+      whose image it is and the mirrored axes
+    history : (I, H) float64 contact history
+    scratch_start, scratch_ids, scratch_history : the next list while a rebuild runs;
+      between rebuilds scratch_ids holds the grain of each candidate
+    force : (I, 3) float64 [N] force of the image on the grain
+    torque : (I, 3) float64 [N m] torque of the image on the grain
+    """
+    flag: np.ndarray
+    at: np.ndarray
     start: np.ndarray
     ids: np.ndarray
     history: np.ndarray

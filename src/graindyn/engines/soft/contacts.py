@@ -95,7 +95,7 @@ def pair_geometry(i, j, xi, yi, zi, r_i, m_i, positions, radii, masses, fixed, p
 
 
 @scalar
-def _opened(model, params, a, b, r_eff, history, pair_force, pair_torque_j, k):
+def opened(model, params, a, b, r_eff, history, pair_force, pair_torque_j, k):
     """Pair k not touching: the energy [J] its history springs held, if it had opened
     only now (_release), else 0.  The torque row counts too: a touching pair whose
     force is exactly zero (a repulsive-only law at rest) may leave it stale when the CPU
@@ -137,7 +137,7 @@ def pair_row(i, model, params, positions, velocities, angular_velocities, radii,
             i, j, xi, yi, zi, r_i, m_i, positions, radii, masses, fixed, px, py, pz, lx, ly,
             lz)
         if not touching:
-            dissipated_t += _opened(model, params, a, materials[j], r_eff, history,
+            dissipated_t += opened(model, params, a, materials[j], r_eff, history,
                                     pair_force, pair_torque_j, k)
             continue
         worst = max(worst, ratio)
@@ -172,7 +172,7 @@ def pair_row(i, model, params, positions, velocities, angular_velocities, radii,
 
 
 @scalar
-def _stage_table(work, c, params, a, b, history, k):
+def stage_table(work, c, params, a, b, history, k):
     """Column c of the workspace: the pair-table row of materials a and b (with
     several materials: with one, the rows are filled once, law_loop.prepare) and the
     history of contact k."""
@@ -188,13 +188,13 @@ def _stage(work, c, params, a, b, history, k, overlap, lever_i, lever_j, r_eff, 
            nz, dvx, dvy, dvz, wx, wy, wz, dwx, dwy, dwz):
     """Column c of the workspace: the inputs of contact_response for wall contact k
     between materials a and b (law_loop.stage_geometry and v_rel), and
-    _stage_table."""
+    stage_table."""
     stage_geometry(work, c, overlap, lever_i, lever_j, r_eff, m_eff, nx, ny, nz, wx, wy, wz,
                    dwx, dwy, dwz)
     work[DVX * STRIDE + c] = dvx
     work[(DVX + 1) * STRIDE + c] = dvy
     work[(DVX + 2) * STRIDE + c] = dvz
-    _stage_table(work, c, params, a, b, history, k)
+    stage_table(work, c, params, a, b, history, k)
 
 
 @scalar
@@ -353,7 +353,7 @@ def _pair_rows(lo, hi, law, work, slots, dirty, model, params, positions, veloci
         rsum = r_i + r_j
         touching = dx * dx + dy * dy + dz * dz < rsum * rsum
         if dirty[k] > int(touching):     # open, and perhaps not cleared yet
-            dissipated_t += _opened(model, params, a, materials[j], r_i * r_j / rsum,
+            dissipated_t += opened(model, params, a, materials[j], r_i * r_j / rsum,
                                     history, pair_force, pair_torque_j, k)
         dirty[k] = touching
         work[SX * STRIDE + count] = dx
@@ -624,7 +624,7 @@ def contact_forces(model, params, law, positions, velocities, angular_velocities
             history, pair_force, pair_torque_j, wall_kind, wall_geometry, wall_offset,
             wall_velocity, wall_material, wall_start, wall_ids, wall_owner, wall_history,
             wall_force, wall_torque, own, max_overlap, dt)
-    return _block_total(sums, started, nblock)
+    return block_total(sums, started, nblock)
 
 
 def block_count(n, threads):
@@ -647,7 +647,7 @@ def block_count(n, threads):
 
 
 @scalar
-def _block_total(sums, started, nblock):
+def block_total(sums, started, nblock):
     """Column sums of the energies and the collisions of the first ``nblock`` blocks,
     in block order."""
     total_n = 0.0

@@ -20,7 +20,8 @@ pairs) and WALL_COLLISIONS, at every evaluation of a step but not at the priming
 one, whose contacts were there when the run (or a relocation) put the grains.
 
 The kernels take their arrays in the named bundles of engines/soft/bundles.py (grains:
-Grains, pairs: Pairs, walls: WallBundle, periodic: PeriodicBox, law: LawWorkspace) and
+Grains, pairs: Pairs, walls: WallBundle, periodic: PeriodicBox, images: Images, law:
+LawWorkspace) and
 read them by field name (``grains.radii``, ``walls.offset``).
 
 run_chunk and what it calls every step are compiled without reference counting
@@ -37,6 +38,7 @@ from ...core.neighbors import rebuild
 from ...core.triggers import ENERGY_RATIO_BELOW, MAX_SPEED_BELOW
 from ...core.walls import walls_advance
 from .contacts import PAIRS, PLANAR, WALLS, contact_forces, largest
+from .image_contacts import image_forces
 from .integrators import STAGES, after_force, before_force
 
 # return codes of run_chunk (and relist: DONE, GROW, NAN)
@@ -64,9 +66,10 @@ def new_clock(dt, skin, gravity):
 
 
 @driver
-def evaluate_forces(model, params, law, grains, pairs, walls, periodic, gravity, dt, nblock,
-                    dim):
-    """All contact forces and the total force on each wall in a ``dim``-D system;
+def evaluate_forces(model, params, law, grains, pairs, walls, periodic, images, gravity, dt,
+                    nblock, dim):
+    """All contact forces (pairs, walls, then the images of the symmetry planes,
+    image_contacts.image_forces) and the total force on each wall in a ``dim``-D system;
     returns the (normal, tangential) energy dissipated [J], the power of the walls on
     the grains [W], and the grain-pair and grain-wall contacts that started
     (collisions, contacts.touch).
@@ -85,6 +88,16 @@ def evaluate_forces(model, params, law, grains, pairs, walls, periodic, gravity,
         walls.material, walls.wall_start, walls.wall_ids, walls.scratch_wall_ids,
         walls.wall_history, walls.contact_force, walls.contact_torque, pairs.own,
         grains.max_overlap, dt, nblock, np.int64(parts))
+    if images.start[grains.masses.size] > 0:
+        image_n, image_t, image_collisions = image_forces(
+            model, params, law, grains.positions, grains.velocities,
+            grains.angular_velocities, grains.radii, grains.masses, grains.materials,
+            grains.fixed, periodic.flag, periodic.length, images.at, images.start, images.ids,
+            images.scratch_ids, images.history, images.force, images.torque, pairs.own,
+            grains.max_overlap, dt, nblock)
+        dn += image_n
+        dt_ += image_t
+        pair_collisions += image_collisions
     force, contact_force, velocity, wall_ids = \
         walls.force, walls.contact_force, walls.velocity, walls.wall_ids
     force[:] = 0.0
@@ -248,7 +261,7 @@ def _lists_ready(clock, counters, walls):
 
 
 @driver
-def run_chunk(model, params, law, grains, pairs, walls, periodic, clock, counters,
+def run_chunk(model, params, law, grains, pairs, walls, periodic, images, clock, counters,
               integrator_history, block_scratch, nsteps):
     """Advance up to ``nsteps`` steps; returns (status, steps done).  On RELIST the
     step ``done`` is under way: call relist, then run_chunk for the steps left.
@@ -263,8 +276,8 @@ def run_chunk(model, params, law, grains, pairs, walls, periodic, clock, counter
         if counters[PRIMED] == 0:
             if not _lists_ready(clock, counters, walls):
                 return RELIST, s
-            evaluate_forces(model, params, law, grains, pairs, walls, periodic, gravity, 0.0,
-                            block_scratch.size, counters[DIM])
+            evaluate_forces(model, params, law, grains, pairs, walls, periodic, images, gravity,
+                            0.0, block_scratch.size, counters[DIM])
             # stage and drift_next as a plain int64 and bool: literals would compile the
             # pass a second time
             clock[MOVE] = _after(integrator, np.int64(0), 0.0, counters, gravity, grains,
@@ -291,7 +304,7 @@ def run_chunk(model, params, law, grains, pairs, walls, periodic, clock, counter
             # and wall work advance by that share, not by the whole step
             share = dt / STAGES[integrator]
             dn, dtan, power, pair_collisions, wall_collisions = evaluate_forces(
-                model, params, law, grains, pairs, walls, periodic, gravity, share,
+                model, params, law, grains, pairs, walls, periodic, images, gravity, share,
                 block_scratch.size, counters[DIM])
             counters[COLLISIONS] += pair_collisions
             counters[WALL_COLLISIONS] += wall_collisions

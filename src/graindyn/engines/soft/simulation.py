@@ -10,14 +10,15 @@ import math
 import numba
 import numpy as np
 
-from ...core.engine import (Contacts, OverlapError, SimulationError, WallContacts,
-                            checked_gravity)
+from ...core.engine import (Contacts, ImageContacts, OverlapError, SimulationError,
+                            WallContacts, checked_gravity)
 from ...core.neighbors import list_owners
 from ...core.species import ContactModel, Material
+from ...core.symmetry import MASKS, SymmetryPlanes, rebuild_images
 from ...core.triggers import NO_CONDITION, pauses
 from ...core.walls import Walls
 from . import energy, loop
-from .bundles import Grains, Pairs, PeriodicBox, WallPairs, wall_bundle
+from .bundles import Grains, Images, Pairs, PeriodicBox, WallPairs, wall_bundle
 from .contacts import block_count
 from .integrators import SCHEMES, SLOTS, history_names, integrator_id
 from .law_loop import law_address, prepare, workspace as law_workspace
@@ -60,6 +61,8 @@ class Simulation:
 
     state : State;  materials : list of Material (grain and wall materials by index)
     model : ContactModel;  walls : list of Plane/Cylinder;  periodic : list of Periodic
+    symmetry : list of core.symmetry.Symmetry planes (CPU only): the grains near one
+      touch the mirror images of the grains near it (image_contacts.py)
     gravity : (3,) [m/s^2];  dt [s] (None: the suggested step);  skin [m] (None: 0.1 of
     the mean diameter);  allow_large_dt: accept a step above the safe fraction.
     overlap_limit : stop when some overlap exceeds this fraction of the smaller radius.
@@ -86,7 +89,7 @@ class Simulation:
     def __init__(self, state, materials, model=None, walls=(), periodic=(),
                  gravity=(0.0, 0.0, -9.81), dt=None, skin=None, integrator="velocity_verlet",
                  allow_large_dt=False, overlap_limit=0.2, check_interval=100, backend="cpu",
-                 orientations=True):
+                 orientations=True, symmetry=()):
         if backend not in ("cpu", "gpu"):
             raise ValueError(f"backend must be 'cpu' or 'gpu', got {backend!r}")
         if backend == "gpu" and not orientations:
@@ -110,6 +113,11 @@ class Simulation:
         self.walls = walls if isinstance(walls, Walls) else Walls(walls, periodic)
         if np.any(self.walls.material >= n_mat):
             raise ValueError(f"wall material ids must be in 0..{n_mat - 1}")
+        self.symmetry = symmetry if isinstance(symmetry, SymmetryPlanes) else \
+            SymmetryPlanes(symmetry, state.dim, self.walls.periodic_flag)
+        if self.symmetry and backend == "gpu":
+            raise ValueError("symmetry planes run on the CPU backend only: the GPU has no "
+                             "image contacts")
         gravity = checked_gravity(gravity, state.dim)
         self.params = self.model.pair_table(self.materials)
         self.model_ids = self.model.ids()
@@ -157,6 +165,7 @@ class Simulation:
         # start small: the first build grows the lists to 1.3 x what it needs
         self._allocate_pairs(2 * n + 64)
         self._allocate_walls(n // 4 + 16)
+        self._allocate_images(n // 4 + 16 if self.symmetry else 0)
         self._allocate_integrator()
 
     # ------------------------------------------------------------------ storage
@@ -200,6 +209,43 @@ class Simulation:
                                     force=np.zeros((capacity, 3)),
                                     torque=np.zeros((capacity, 3)))
         self.reference_offset = w.offset.copy()
+
+    def _allocate_images(self, capacity):
+        """(Re)allocate the image-candidate arrays (bundles.Images) with room for
+        ``capacity`` candidates, keeping the list."""
+        n, h = self.state.n, self.history_size
+        old = getattr(self, "images", None)
+        start = old.start if old is not None else np.zeros(n + 1, np.int64)
+        ids = np.zeros(capacity, np.uint32)
+        history = np.zeros((capacity, h))
+        force = np.zeros((capacity, 3))
+        torque = np.zeros((capacity, 3))
+        if old is not None:
+            m = int(old.start[n])
+            for new, was in ((ids, old.ids), (history, old.history), (force, old.force),
+                             (torque, old.torque)):
+                new[:m] = was[:m]
+        self.images = Images(flag=self.symmetry.flag, at=self.symmetry.at, start=start,
+                             ids=ids, history=history, scratch_start=np.zeros(n + 1, np.int64),
+                             scratch_ids=np.zeros(capacity, np.uint32),
+                             scratch_history=np.zeros((capacity, h)), force=force,
+                             torque=torque)
+
+    def _rebuild_images(self):
+        """Rebuild the image-candidate list at the current positions (core.symmetry),
+        growing it as needed; nothing to do without symmetry planes."""
+        if not self.symmetry:
+            return
+        w = self.walls
+        while True:
+            im = self.images
+            needed = rebuild_images(self.state.positions, self.state.radii, self.skin,
+                                    w.periodic_flag, w.periodic_lo, w.periodic_length,
+                                    im.flag, im.at, im.start, im.ids, im.history,
+                                    im.scratch_start, im.scratch_ids, im.scratch_history)
+            if needed <= im.ids.size:
+                return
+            self._allocate_images(int(1.3 * needed) + 16)
 
     def _allocate_integrator(self):
         """The integrator's per-grain history, zero: ``integrator_history`` (slots, N, 3),
@@ -340,10 +386,11 @@ class Simulation:
             # the grains of the pair and wall walks (kept by each rebuild), whatever set the lists
             list_owners(self.pairs.start, self.state.n, self.pairs.scratch_partners)
             list_owners(self.wall_pairs.start, self.state.n, self.wall_pairs.scratch_ids)
+            list_owners(self.images.start, self.state.n, self.images.scratch_ids)
             status, done = loop.run_chunk(self.model_ids, self.params, self._law, self._grains(),
                                           self.pairs, self._walls(), self._periodic(),
-                                          self.clock, self.counters, self.integrator_history,
-                                          self.block_scratch, nsteps)
+                                          self.images, self.clock, self.counters,
+                                          self.integrator_history, self.block_scratch, nsteps)
             total += done
             self.state.time = self.time
             self.state.step = self.step
@@ -355,11 +402,13 @@ class Simulation:
             nsteps -= done
 
     def _relist(self):
-        """Rebuild the neighbour lists (loop.relist), growing them as needed; returns
-        DONE or NAN."""
+        """Rebuild the neighbour lists (loop.relist) and the image candidates, growing
+        them as needed; returns DONE or NAN."""
         while True:
             status = loop.relist(self._grains(), self.pairs, self._walls(), self._periodic(),
                                  self.clock, self.counters, self._law)
+            if status == loop.DONE:
+                self._rebuild_images()
             if status != loop.GROW:
                 return status
             need_p = int(self.counters[loop.NEED_PAIRS])
@@ -469,9 +518,9 @@ class Simulation:
         bit."""
         arrays = {f"grains/{k}": v for k, v in self.state.arrays().items()}
         arrays.update({f"integrator/{k}": v for k, v in self.integrator_state.items()})
-        for group, lists in (("pairs", self.pairs), ("wall_contacts", self.wall_pairs)):
+        for group, lists in self._lists():
             arrays.update({f"{group}/{k}": v for k, v in lists._asdict().items()
-                           if not k.startswith("scratch_")
+                           if not k.startswith("scratch_") and k not in ("flag", "at")
                            and f"{group}/{k}" not in _TRANSIENT})
         w = self.walls
         arrays.update({"walls/offset": w.offset, "walls/base": w.base,
@@ -482,6 +531,12 @@ class Simulation:
                        "loop/max_overlap": self.max_overlap, "loop/clock": self.clock,
                        "loop/counters": self.counters})
         return {k: np.array(v, copy=True) for k, v in arrays.items()}
+
+    def _lists(self):
+        """(checkpoint group, bundle) of each contact list: pairs, wall contacts and,
+        with symmetry planes, the image candidates."""
+        lists = [("pairs", self.pairs), ("wall_contacts", self.wall_pairs)]
+        return lists + [("images", self.images)] if self.symmetry else lists
 
     def restore(self, arrays):
         """Put a ``snapshot`` back (same grains, walls and model); ValueError naming the
@@ -504,13 +559,16 @@ class Simulation:
             put(v, f"integrator/{k}")
         def lists(group, bundle):  # scratch arrays are rebuilt empty, like their twins
             return bundle(**{
-                k: np.zeros((self.state.n, 6)) if f"{group}/{k}" in _TRANSIENT
+                k: getattr(self.symmetry, k) if k in ("flag", "at")
+                else np.zeros((self.state.n, 6)) if f"{group}/{k}" in _TRANSIENT
                 else np.zeros_like(arrays[f"{group}/{k.removeprefix('scratch_')}"])
                 if k.startswith("scratch_") else np.array(arrays[f"{group}/{k}"])
                 for k in bundle._fields})
 
         self.pairs = lists("pairs", Pairs)
         self.wall_pairs = lists("wall_contacts", WallPairs)
+        if self.symmetry:
+            self.images = lists("images", Images)
         motion = np.asarray(arrays["walls/motion"])
         if motion.ndim == 2 and motion.shape[1] == 8:   # written before the piston's mass
             arrays = {**arrays, "walls/motion": np.pad(motion, ((0, 0), (0, 1)))}
@@ -528,7 +586,8 @@ class Simulation:
         """Bytes held by the grain, pair and wall-contact arrays of this simulation (and
         the law loop's workspaces once it has run on the CPU)."""
         arrays = list(self.state.arrays().values()) + list(self.pairs) \
-            + list(self.wall_pairs) + [self.reference_positions, self.max_overlap] \
+            + list(self.wall_pairs) + list(self.images) \
+            + [self.reference_positions, self.max_overlap] \
             + ([a for a in self._law if isinstance(a, np.ndarray)]
                if self._law is not None else [])
         return int(sum(a.nbytes for a in arrays))
@@ -571,15 +630,33 @@ class Simulation:
         return WallContacts(grain, wall, -distance[:, None] * normal, normal_force,
                             force - normal_force[:, None] * normal, normal)
 
+    def image_contacts(self):
+        """The touching contacts of grains with the mirror images of grains (symmetry
+        planes) at the last force evaluation (engine.ImageContacts); the contact point
+        sits as for a pair of grains (contacts)."""
+        grain, code, force = self._touching(self.images, "ids")
+        s, sym = self.state, self.symmetry
+        j, mask = code // MASKS, code % MASKS
+        separation = self.walls.minimum_image(s.positions[grain]
+                                              - sym.image(s.positions[j], mask))
+        distance = np.linalg.norm(separation, axis=1)
+        normal = separation / distance[:, None]
+        r_i, r_j = s.radii[grain], s.radii[j]
+        share = (r_i + r_j - distance) / (r_i + r_j)
+        normal_force = np.einsum("ka,ka->k", force, normal)
+        return ImageContacts(grain, j, mask, -(r_i - share * r_j)[:, None] * normal,
+                             normal_force, force - normal_force[:, None] * normal, normal)
+
     def energies(self):
         """The energies of engine.ENERGIES [J]: kinetic, rotational and gravitational of
-        the free grains, elastic energy of the listed contacts (engines/soft/energy.py), and the
-        dissipation and wall work the loop accumulates."""
+        the free grains, elastic energy of the listed contacts (engines/soft/energy.py;
+        half of each image contact's), and the dissipation and wall work the loop accumulates."""
         translational, rotational = energy.kinetic_energy(self.state)
         return {"kinetic": translational, "rotational": rotational,
                 "gravitational": energy.gravitational_energy(self.state, self.gravity),
                 "elastic": energy.elastic_energy(self.model_ids, self.params, self.state,
-                                                 self.walls, self.pairs, self.wall_pairs),
+                                                 self.walls, self.pairs, self.wall_pairs,
+                                                 self.images),
                 "dissipated_normal": self.dissipated["normal"],
                 "dissipated_tangential": self.dissipated["tangential"],
                 "wall_work": self.wall_work}
@@ -615,14 +692,17 @@ class Simulation:
             return
         chosen = np.zeros(s.n, bool)
         chosen[idx] = True
-        for lists, partners in ((self.pairs, True), (self.wall_pairs, False)):
+        for lists, partner in ((self.pairs, "partners"), (self.wall_pairs, None),
+                               (self.images, "ids")):
             arrays = lists._asdict()
             start = arrays["start"]
             m = int(start[s.n])
             stale = chosen[np.repeat(np.arange(s.n), np.diff(start))]
-            if partners:                      # a pair is listed by one of its two grains
+            if partner == "partners":         # a pair is listed by one of its two grains
                 stale |= chosen[arrays["partners"][:m]]
-            for name in ("history", "force", "torque_j" if partners else "torque"):
+            elif partner == "ids":            # an image is the image of a grain
+                stale |= chosen[arrays["ids"][:m] // MASKS]
+            for name in ("history", "force", "torque_j" if partner == "partners" else "torque"):
                 arrays[name][:m][stale] = 0.0
         self.counters[loop.FORCE_REBUILD] = 1
         self.reset_integrator_history()
