@@ -227,3 +227,26 @@ def test_gpu_backend_refuses_symmetry_planes():
     with pytest.raises(ValueError, match="CPU backend only|backend 'gpu'"):
         _system([[R, 0.0, 0.0]], [[0.0, 0.0, 0.0]], [[0.0, 0.0, 0.0]],
                 symmetry=[Symmetry("x", 0.0)], backend="gpu")
+
+
+def test_relaxation_holds_a_grain_on_its_image_at_the_hertz_equilibrium():
+    """Eq. 29 with a symmetry plane: a grain pushed by gravity into the plane x = 0 from
+    deep inside its image relaxes to where the Hertz force of the pair (R* = R/2,
+    overlap 2 (R - x)) carries its weight; a grain near the plane but above another
+    relaxes onto it as in the full system (forces in static equilibrium)."""
+    from graindyn.engines.soft.relaxation import relax
+
+    planes = [Symmetry("x", 0.0)]
+    state = gd.State.create([[0.7 * R, 0.0, 0.0]], [R], DENSITY)
+    material = gd.Material(youngs_modulus=1e7, poisson_ratio=0.3)
+    g = 9.81
+    result = relax(state, [material], gravity=(-g, 0.0, 0.0), symmetry=planes,
+                   force_tolerance=1e-8)
+    assert result.converged
+    e_star = 1e7 / (2 * (1 - 0.3**2))
+    weight = state.masses[0] * g
+    overlap = (weight / (4.0 / 3.0 * e_star * math.sqrt(R / 2))) ** (2.0 / 3.0)
+    assert 2 * (R - result.positions[0, 0]) == pytest.approx(overlap, rel=1e-5)
+    assert result.overlaps_before.max == pytest.approx(0.6, rel=1e-9)   # 2 (R - 0.7 R) / R
+    assert result.functional_after < result.functional_before
+

@@ -5,6 +5,7 @@ import pytest
 from scipy.optimize import brentq
 
 import graindyn as gd
+from graindyn.core.symmetry import Symmetry, SymmetryPlanes
 from graindyn.core.walls import Cylinder, Plane, Walls
 from graindyn.engines.soft.relaxation import candidate_lists, functional, relax, youngs_table
 
@@ -97,16 +98,23 @@ def test_grain_on_a_fixed_grain_and_on_a_wall(one_thread):
     assert small - result.positions[0, 2] == pytest.approx(expected, rel=1e-4)
 
 
-def test_functional_gradient_against_finite_differences(one_thread):
+@pytest.mark.parametrize("quarter", [False, True])
+def test_functional_gradient_against_finite_differences(one_thread, quarter):
+    """The gradient of Eq. 29 is its derivative, also with the half potentials of the
+    image contacts of two symmetry planes (the quarter of the cylinder: grains near
+    x = 0 and y = 0, each touching its own images and the others')."""
     rng = np.random.default_rng(7)
     n = 12
-    positions = rng.uniform([-4e-3, -4e-3, 2.6e-3], [4e-3, 4e-3, 12e-3], (n, 3))
+    low = [0.5e-3, 0.5e-3, 2.6e-3] if quarter else [-4e-3, -4e-3, 2.6e-3]
+    positions = rng.uniform(low, [4e-3, 4e-3, 12e-3], (n, 3))
     radii = rng.uniform(2.6e-3, 3.8e-3, n)
     state = gd.State.create(positions, radii, 2710.0, materials=rng.integers(0, 2, n))
     walls = Walls([Plane((0, 0, 0), (0, 0, 1), material=1),
                    Cylinder((0, 0, 0), (0, 0, 1), 7e-3, material=1)])
+    planes = SymmetryPlanes([Symmetry("x"), Symmetry("y")] if quarter else [])
     youngs = youngs_table([DIORITE, STEEL])
-    lists = candidate_lists(state.positions, radii, 10e-3, walls)
+    lists = candidate_lists(state.positions, radii, 10e-3, walls, planes)
+    assert (lists.image_codes.size > 20) == quarter
     loads = rng.normal(0, 0.1, (n, 3))
     free = np.ones(n, np.int8)
     gravity = np.array([0.0, 0.0, -G])
@@ -118,7 +126,8 @@ def test_functional_gradient_against_finite_differences(one_thread):
                            youngs, gravity, loads, free, lists.start, lists.partners,
                            walls.periodic_flag, walls.periodic_length, lists.wall_start,
                            lists.wall_ids, walls.kind, walls.geometry, walls.offset,
-                           walls.material.astype(np.int64), gradient)
+                           walls.material.astype(np.int64), lists.image_start,
+                           lists.image_codes, planes.at, gradient)
         return value, gradient
 
     value, gradient = energy(state.positions)

@@ -35,25 +35,31 @@ def void_ratio(packing):
 
 def coordination_number(engine, exclude_rattlers=False):
     """Mean number of grain-grain contacts per free grain of ``engine`` (core.engine),
-    Z = 2 C / N.
+    Z = (2 C + C_images) / N: with symmetry planes (core/symmetry.py) each contact of a
+    grain with a mirror image counts one for its grain, as the contact of the full
+    system it stands for counts one for each of its two grains.
 
     exclude_rattlers: leave out grains with fewer than 2 contacts (walls counted), and
-    the contacts they carry, as is usual for the mechanical coordination number.
+    the contacts they carry, as is usual for the mechanical coordination number (an
+    image contact stays with its grain; the image of a rattler is not dropped).
     """
     pairs = engine.contacts()
     i, j = pairs.i, pairs.j
     n = engine.state.n
     free = engine.state.fixed == 0
+    imaged = engine.image_contacts().grain if hasattr(engine, "image_contacts") \
+        else np.zeros(0, np.int64)
     if not exclude_rattlers:
-        return float(2 * i.size / max(1, int(free.sum())))
+        return float((2 * i.size + imaged.size) / max(1, int(free.sum())))
     gi = engine.wall_contacts().grain
     keep = free.copy()
     while True:
         count = np.bincount(i[keep[i] & keep[j]], minlength=n) \
-            + np.bincount(j[keep[i] & keep[j]], minlength=n) + np.bincount(gi, minlength=n)
+            + np.bincount(j[keep[i] & keep[j]], minlength=n) + np.bincount(gi, minlength=n) \
+            + np.bincount(imaged, minlength=n)
         drop = keep & (count < 2)
         if not drop.any():
             break
         keep &= ~drop
     both = keep[i] & keep[j]
-    return float(2 * both.sum() / max(1, int(keep.sum())))
+    return float((2 * both.sum() + keep[imaged].sum()) / max(1, int(keep.sum())))

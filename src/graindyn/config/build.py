@@ -7,6 +7,7 @@ import numpy as np
 
 from ..core.species import ContactModel, Material
 from ..core.state import State, sample_radii
+from ..core.symmetry import Symmetry
 from ..core.walls import Cylinder, Motion, Periodic, Plane, Segment, box
 from ..engines import ENGINES, Setup
 from ..protocols import PROTOCOLS, Vessel
@@ -64,15 +65,37 @@ def setup(config: Config, made_protocol=None):
         index = lambda name: config.material_index(name or config.walls.material)  # noqa: E731
         planes = made_protocol.walls(planes, index)
     return Setup(materials(config), contact_model(config), planes, periodic,
-                 config.run.gravity, config.run.backend)
+                 config.run.gravity, config.run.backend, symmetry(config))
+
+
+def symmetry(config: Config):
+    """The symmetry planes of the config (core.symmetry.Symmetry), each at its ``at`` or
+    at the container's centre along its axis."""
+    box_ = config.walls.container
+    if isinstance(box_, BoxContainer):
+        middle = [0.5 * (a + b) for a, b in zip(box_.lo, box_.hi)]
+    elif box_ is not None:
+        middle = list(box_.center)
+    else:
+        middle = []
+    out = []
+    for k, s in enumerate(config.walls.symmetry):
+        axis = "xyz".index(s.axis)
+        if s.at is None and axis >= len(middle):
+            raise ValueError(f"walls.symmetry[{k}]: give its coordinate ``at`` (no "
+                             f"container centre along {s.axis})")
+        out.append(Symmetry(axis, middle[axis] if s.at is None else s.at, s.side))
+    return tuple(out)
 
 
 def vessel(config: Config):
     """The container as protocols see it (protocols.Vessel)."""
     box_ = config.walls.container
     if isinstance(box_, BoxContainer):
-        return Vessel.box(box_.lo, box_.hi, box_.open_top, config.run.dim)
-    return Vessel.cylinder(box_.center, box_.radius, box_.height)
+        whole = Vessel.box(box_.lo, box_.hi, box_.open_top, config.run.dim)
+    else:
+        whole = Vessel.cylinder(box_.center, box_.radius, box_.height)
+    return whole.mirrored(symmetry(config))
 
 
 def protocol(config: Config):

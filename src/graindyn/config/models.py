@@ -12,6 +12,7 @@ from typing import Literal
 from pydantic import SerializeAsAny, field_validator, model_validator
 
 from .. import engines, protocols
+from ..core.symmetry import SymmetryPlanes
 from ..physics import registry
 from ..schema import Float, Int, Section, by_kind, described
 
@@ -188,6 +189,18 @@ class CylinderContainer(Section):
     center: tuple[Float, Float] = _f((0.0, 0.0), "axis position (x, y) [m]; the axis is z")
 
 
+class SymmetrySection(Section):
+    """A symmetry plane (core.symmetry.Symmetry): the grains near it touch the mirror
+    images of the grains near it, so the part of the system on one side behaves as the
+    whole symmetric system (a quarter of a cylinder with two planes)."""
+
+    axis: Literal["x", "y", "z"] = _f(..., "the axis normal to the plane")
+    at: Float | None = _f(None, "coordinate of the plane along its axis [m]; default: the "
+                          "container's centre (its axis for a cylinder)")
+    side: Literal[1, -1] = _f(1, "the side of the plane the grains are on: 1 above "
+                              "``at``, -1 below")
+
+
 class SegmentSection(Section):
     """A finite wall (core.walls.Segment): in 2D the line segment from start to end in
     the x-y plane, in 3D the rectangle with corners start, end, end + edge, start + edge;
@@ -243,6 +256,9 @@ class WallsSection(Section):
         [], "finite walls: line segments (2D) or rectangles (3D), two-sided")
     periodic: list[tuple[Int, Float, Float]] = _f(
         [], "periodic directions as (axis 0..2, lo [m], hi [m])")
+    symmetry: list[SymmetrySection] = _f(
+        [], "symmetry planes, at most one per axis (soft engine, CPU): e.g. "
+        "[{axis = \"x\"}, {axis = \"y\"}] for the quarter of a cylinder")
 
 
 # where the fields of a section that older configs had now live
@@ -365,6 +381,17 @@ class Config(Section):
             if axis not in range(dim) or not hi > lo:
                 raise ValueError(f"walls.periodic: ({axis}, {lo}, {hi}) needs axis in "
                                  f"0..{dim - 1} and hi > lo [m]")
+        if self.walls.symmetry and not engines.ENGINES[self.engine.kind].symmetry:
+            able = [e.kind for e in engines.ENGINES.values() if e.symmetry]
+            raise ValueError(f"walls.symmetry: engine.kind = {self.engine.kind!r} has no "
+                             f"symmetry planes; engines that do: {', '.join(able)}")
+        if self.walls.symmetry and self.run.backend != "cpu":
+            raise ValueError("walls.symmetry: symmetry planes run on the CPU backend only")
+        if self.walls.symmetry:
+            from .build import symmetry, vessel
+            periodic = [int(any(a == d for a, _, _ in self.walls.periodic)) for d in range(3)]
+            SymmetryPlanes(symmetry(self), dim, periodic)
+            vessel(self)
         return self
 
     def _check_wall_motions(self, protocol):

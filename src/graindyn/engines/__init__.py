@@ -15,7 +15,9 @@ class Setup(NamedTuple):
     """What every engine is built from besides the grains (core.state.State):
     materials (core.species.Material list, indexed by material id), model (the contact
     laws, core.species.ContactModel), walls (core.walls Plane/Cylinder/... list), periodic
-    (core.walls.Periodic list), gravity (3,) [m/s^2], backend ("cpu" or "gpu")."""
+    (core.walls.Periodic list), gravity (3,) [m/s^2], backend ("cpu" or "gpu"),
+    symmetry (core.symmetry.Symmetry planes: only for an engine whose entry says it
+    has them, EngineKind.symmetry)."""
 
     materials: list
     model: object
@@ -23,6 +25,7 @@ class Setup(NamedTuple):
     periodic: list
     gravity: tuple
     backend: str
+    symmetry: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -41,6 +44,8 @@ class EngineKind:
       validation refuses a protocol or a wall that needs another.
     contact_laws : whether it reads the ``[contact]`` laws (checked against the
       materials before a run only then).
+    symmetry : whether it runs symmetry planes (core/symmetry.py); config validation
+      refuses them for an engine that does not.
     """
 
     kind: str
@@ -50,6 +55,7 @@ class EngineKind:
     summary: str
     wall_motions: tuple = ("fixed", "velocity", "sinusoid", "servo", "piston")
     contact_laws: bool = True
+    symmetry: bool = False
 
 
 ENGINES: dict[str, EngineKind] = {}

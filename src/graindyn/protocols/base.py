@@ -30,6 +30,8 @@ class Vessel:
     open_top : no wall at the top (a box built with open_top; a cylinder always).
     bottom_wall, side_walls : the names of its walls.
     cross_section [m^2] (2D: width [m]) and perimeter [m] (2D: 2, the two sides).
+    symmetry : the symmetry planes (core.symmetry.Symmetry) that cut it (``mirrored``):
+      lo, hi, cross_section and perimeter are then those of the part the grains fill.
     """
 
     dim: int
@@ -43,6 +45,7 @@ class Vessel:
     perimeter: float
     center: tuple | None = None
     radius: float | None = None
+    symmetry: tuple = ()
 
     @classmethod
     def box(cls, lo, hi, open_top, dim):
@@ -59,6 +62,35 @@ class Vessel:
         return cls(3, "cylinder", (cx - radius, cy - radius, 0.0),
                    (cx + radius, cy + radius, float(height)), True, "bottom", ("side",),
                    math.pi * radius**2, 2.0 * math.pi * radius, (cx, cy), float(radius))
+
+    def mirrored(self, planes):
+        """The part of this vessel on the grains' side of the symmetry planes ``planes``
+        (core.symmetry.Symmetry), each a symmetry plane of the vessel: normal to a
+        horizontal axis, through the middle of a box or the axis of a cylinder.  Each
+        halves the cross-section and the perimeter of the side walls.  ValueError for
+        another plane."""
+        if not planes:
+            return self
+        lo, hi = list(self.lo), list(self.hi)
+        for p in planes:
+            d = p.index
+            middle = 0.5 * (self.lo[d] + self.hi[d]) if d < self.dim else None
+            if d >= self.dim - 1 or not math.isclose(p.at, middle, rel_tol=0,
+                                                      abs_tol=1e-12 * (self.hi[d] - self.lo[d])):
+                raise ValueError(
+                    f"symmetry plane {'xyz'[d]} = {p.at:.6g} m: a symmetry plane of the "
+                    f"{self.shape} is normal to a horizontal axis ("
+                    f"{' or '.join('xyz'[:self.dim - 1])}) and passes through its "
+                    f"{'axis' if self.shape == 'cylinder' else 'middle'}"
+                    + (f" ({'xyz'[d]} = {middle:.6g} m)" if middle is not None else ""))
+            if p.side > 0:
+                lo[d] = p.at
+            else:
+                hi[d] = p.at
+        share = 0.5 ** len(planes)
+        return type(self)(self.dim, self.shape, tuple(lo), tuple(hi), self.open_top,
+                          self.bottom_wall, self.side_walls, share * self.cross_section,
+                          share * self.perimeter, self.center, self.radius, tuple(planes))
 
     @property
     def floor(self):
@@ -80,7 +112,9 @@ class Vessel:
                              "open its top, make it taller or lower the count")
         if self.shape == "box":
             return BoxRegion(self.lo[:-1] + (self.floor,), self.hi[:-1] + (top,))
-        return CylinderRegion(self.center, self.radius, self.floor, top)
+        return CylinderRegion(self.center, self.radius, self.floor, top,
+                              self.lo[:2] if self.symmetry else None,
+                              self.hi[:2] if self.symmetry else None)
 
 
 class Phase:

@@ -36,12 +36,16 @@ class BoxRegion:
 
 @dataclass(frozen=True)
 class CylinderRegion:
-    """Vertical (z) cylinder of ``radius`` [m] about (cx, cy), between z0 and z1 [m]."""
+    """Vertical (z) cylinder of ``radius`` [m] about (cx, cy), between z0 and z1 [m];
+    with ``clip_lo`` and ``clip_hi`` (x, y) [m], its part within them (the half or
+    quarter that symmetry planes through its axis leave, protocols.Vessel.mirrored)."""
 
     center: tuple
     radius: float
     z0: float
     z1: float
+    clip_lo: tuple | None = None
+    clip_hi: tuple | None = None
 
     def bounds(self, dim):
         if dim != 3 or not self.radius > 0 or not self.z1 > self.z0:
@@ -49,14 +53,19 @@ class CylinderRegion:
         cx, cy = self.center
         lo = np.array([cx - self.radius, cy - self.radius, self.z0])
         hi = np.array([cx + self.radius, cy + self.radius, self.z1])
+        if self.clip_lo is not None:
+            lo[:2] = np.maximum(lo[:2], self.clip_lo)
+            hi[:2] = np.minimum(hi[:2], self.clip_hi)
         return lo, hi, float(self.radius)
 
     def volume(self, dim):
-        return math.pi * self.radius**2 * (self.z1 - self.z0)
+        lo, hi, _ = self.bounds(dim)
+        share = float(np.prod((hi - lo)[:2])) / (2 * self.radius) ** 2
+        return share * math.pi * self.radius**2 * (self.z1 - self.z0)
 
 
 @kernel
-def _random_sequential(radii, lo, hi, cyl_radius, periodic, dim, seed, attempts):
+def _random_sequential(radii, lo, hi, cyl_radius, center, periodic, dim, seed, attempts):
     """Place grains (largest first) at uniform random non-overlapping positions; returns
     positions and the number placed (< N when the region is too full).  Along an axis
     with ``periodic[d]`` the region's extent is the period: positions are uniform over
@@ -73,7 +82,6 @@ def _random_sequential(radii, lo, hi, cyl_radius, periodic, dim, seed, attempts)
     head = -np.ones(counts[0] * counts[1] * counts[2], np.int64)
     nxt = -np.ones(n, np.int64)
     pos = np.zeros((n, 3))
-    center = 0.5 * (lo + hi)
     near = np.zeros((3, 3), np.int64)  # the cells searched along each axis
     n_near = np.ones(3, np.int64)
     for i in range(n):
@@ -137,6 +145,15 @@ def _random_sequential(radii, lo, hi, cyl_radius, periodic, dim, seed, attempts)
     return pos, n
 
 
+def region_center(region, lo, hi):
+    """(3,) [m]: the axis of a cylinder region (x, y), else the middle of its bounds
+    ``lo``, ``hi``."""
+    center = 0.5 * (lo + hi)
+    if isinstance(region, CylinderRegion):
+        center[:2] = region.center
+    return center
+
+
 def random_insertion(radii, region, rng, dim=3, attempts=20000, periodic=()):
     """Random non-overlapping positions (N, 3) [m] for grains of ``radii`` in ``region``.
 
@@ -160,8 +177,8 @@ def random_insertion(radii, region, rng, dim=3, attempts=20000, periodic=()):
                              f"m is shorter than the largest diameter {2 * radii.max():.4g}"
                              " m (the grain would overlap its own image)")
         flag[axis] = 1
-    pos, placed = _random_sequential(radii, lo, hi, cyl, flag, dim,
-                                     int(rng.integers(2**31)), attempts)
+    pos, placed = _random_sequential(radii, lo, hi, cyl, region_center(region, lo, hi), flag,
+                                     dim, int(rng.integers(2**31)), attempts)
     if placed < radii.size:
         fraction = float(np.sum(4 / 3 * np.pi * radii**3 if dim == 3 else np.pi * radii**2)
                          / region.volume(dim))
@@ -181,7 +198,7 @@ def lattice_insertion(radii, region, rng, dim=3, gap=0.05, speed=0.0):
     axes = [np.arange(lo[d] + 0.5 * a, hi[d] - 0.5 * a + 1e-12, a) for d in range(dim - 1)]
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, dim - 1)
     if cyl > 0:
-        c = 0.5 * (lo + hi)[: dim - 1]
+        c = region_center(region, lo, hi)[: dim - 1]
         grid = grid[np.linalg.norm(grid - c, axis=1) <= cyl - 0.5 * a]
     layers = math.ceil(radii.size / max(1, len(grid)))
     top = lo[dim - 1] + 0.5 * a + (layers - 1) * a

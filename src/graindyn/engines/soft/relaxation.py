@@ -20,6 +20,10 @@ the engine mixes them (core/species.py: 1/E* = (1 - nu_a^2)/E_a + (1 - nu_b^2)/E
 1/R* = 1/R_a + 1/R_b; a wall has R = infinity, so R* = R_b, and the wall's material).
 Only elastic normal contacts enter: in a quasi-static relaxation friction does no work
 (Karrech's ||F_t|| <= mu F_n argument), so the minimum is the frictionless equilibrium.
+With symmetry planes (core/symmetry.py) the contacts of grains with mirror images enter
+with half their potential each, as in the dynamics (image_contacts.py): the gradient
+on grain i of (i, j') and (j, i') together is then the full image force on i, and a
+grain's own image holds it on its side of the plane.
 
 Candidate pairs and grain-wall contacts come from the core's neighbour search
 (core/neighbors.rebuild, with no history), listed within R_a + R_b + skin; the lists
@@ -49,6 +53,7 @@ from scipy.optimize import minimize
 from ..._jit import kernel
 from ...core.neighbors import min_image, rebuild
 from ...core.species import ContactModel
+from ...core.symmetry import MASKS, SymmetryPlanes, image_separation, rebuild_images
 from ...core.walls import Walls, wall_distance
 from ...physics.normal import normal_hertz_energy, normal_hertz_stiffness
 from ...physics.registry import COL
@@ -110,12 +115,14 @@ class Relaxation(NamedTuple):
 def functional(positions, reference, radii, masses, materials, youngs, gravity, loads, free,
                start, partners, periodic_flag, periodic_length,
                wall_start, wall_ids, wall_kind, wall_geometry, wall_offset, wall_material,
-               gradient):
+               image_start, image_codes, mirror_at, gradient):
     """Eq. 29 [J] at ``positions`` (N, 3) [m], displacements from ``reference``; writes
     its gradient (N, 3) [N] (minus the net force on each grain; 0 on grains with
     free[b] == 0).  youngs[a, b]: E* [Pa] of materials a, b; gravity (3,) [m/s^2];
     loads (N, 3) [N]; start, partners: the pair list (CSR, i < j); wall_start,
-    wall_ids: the grain-wall candidates; the wall arrays as in core/walls.py."""
+    wall_ids: the grain-wall candidates; the wall arrays as in core/walls.py;
+    image_start, image_codes, mirror_at: the image candidates of the symmetry planes
+    (core/symmetry.py), half the potential of each, its whole force on its grain."""
     n = radii.size
     energy = 0.0
     for b in range(n):
@@ -161,6 +168,22 @@ def functional(positions, reference, radii, masses, materials, youngs, gravity, 
             gradient[i, 0] -= force * nx
             gradient[i, 1] -= force * ny
             gradient[i, 2] -= force * nz
+        for q in range(image_start[i], image_start[i + 1]):
+            j = image_codes[q] // MASKS
+            dx, dy, dz = image_separation(i, image_codes[q], positions, mirror_at,
+                                          periodic_flag, periodic_length)
+            distance = math.sqrt(dx * dx + dy * dy + dz * dz)
+            overlap = radii[i] + radii[j] - distance
+            if overlap <= 0.0 or distance == 0.0:
+                continue
+            r_eff = radii[i] * radii[j] / (radii[i] + radii[j])
+            e_eff = youngs[materials[i], materials[j]]
+            energy += 0.5 * normal_hertz_energy(overlap, r_eff, e_eff)
+            scale = normal_hertz_stiffness(math.sqrt(r_eff * overlap), e_eff) * overlap \
+                / distance
+            gradient[i, 0] -= scale * dx
+            gradient[i, 1] -= scale * dy
+            gradient[i, 2] -= scale * dz
     for b in range(n):
         if free[b] == 0:
             for d in range(3):
@@ -173,12 +196,17 @@ class _Lists(NamedTuple):
     partners: np.ndarray
     wall_start: np.ndarray
     wall_ids: np.ndarray
+    image_start: np.ndarray
+    image_codes: np.ndarray
 
 
-def candidate_lists(positions, radii, skin, walls):
-    """The pairs within R_a + R_b + skin [m] and the grain-wall candidates within
-    R_b + skin, by the core's neighbour search (core/neighbors.rebuild, no contact
-    history kept); returns (start, partners, wall_start, wall_ids) in CSR form."""
+def candidate_lists(positions, radii, skin, walls, symmetry=None):
+    """The pairs within R_a + R_b + skin [m], the grain-wall candidates within R_b +
+    skin and the image candidates of the symmetry planes ``symmetry``
+    (core.symmetry.SymmetryPlanes or None), by the core's neighbour searches
+    (core/neighbors.rebuild, core/symmetry.rebuild_images, no contact history kept);
+    returns (start, partners, wall_start, wall_ids, image_start, image_codes) in CSR
+    form."""
     n = radii.size
     pairs, candidates = 8 * n, 2 * n + 1
     while True:
@@ -196,17 +224,49 @@ def candidate_lists(positions, radii, skin, walls):
             np.zeros(candidates, np.uint32), np.zeros((candidates, 0)),
             np.zeros((n, 3)), np.zeros((len(walls), 3)))
         if needed <= pairs and wall_needed <= candidates:
-            return _Lists(start, partners[:needed], wall_start, wall_ids[:wall_needed])
+            break
         pairs, candidates = max(pairs, int(needed)), max(candidates, int(wall_needed))
+    image_start, image_codes = _image_candidates(positions, radii, skin, walls, symmetry)
+    return _Lists(start, partners[:needed], wall_start, wall_ids[:wall_needed], image_start,
+                  image_codes)
 
 
-def contact_overlaps(positions, radii, walls, lists):
+def _image_candidates(positions, radii, skin, walls, symmetry):
+    """(start (N + 1,), codes) of the image candidates (core/symmetry.rebuild_images);
+    empty without symmetry planes."""
+    n = radii.size
+    start = np.zeros(n + 1, np.int64)
+    if not symmetry:
+        return start, np.zeros(0, np.uint32)
+    size = n + 1
+    while True:
+        codes = np.zeros(size, np.uint32)
+        needed = rebuild_images(positions.copy(), radii, skin, walls.periodic_flag,
+                                walls.periodic_lo, walls.periodic_length, symmetry.flag,
+                                symmetry.at, start, codes, np.zeros((size, 0)),
+                                np.zeros(n + 1, np.int64), np.zeros(size, np.uint32),
+                                np.zeros((size, 0)))
+        if needed <= size:
+            return start, codes[:needed]
+        size = int(needed)
+
+
+def contact_overlaps(positions, radii, walls, lists, symmetry=None):
     """Overlaps [m] of the listed pairs and grain-wall candidates in contact, with the
-    grains involved: (pair overlaps, pair (i, j) (P, 2), wall overlaps, wall grains)."""
+    grains involved: (pair overlaps, pair (i, j) (P, 2), wall overlaps, wall grains,
+    walls); the image contacts of the symmetry planes ``symmetry`` count among the
+    pairs, (i, j) for grain i and the image of j."""
     n = radii.size
     owner = np.repeat(np.arange(n), np.diff(lists.start))
     other = lists.partners.astype(np.int64)
     separation = walls.minimum_image(positions[owner] - positions[other])
+    if symmetry:
+        codes = lists.image_codes.astype(np.int64)
+        imaged = np.repeat(np.arange(n), np.diff(lists.image_start))
+        separation = np.vstack([separation, walls.minimum_image(
+            positions[imaged] - symmetry.image(positions[codes // MASKS], codes % MASKS))])
+        owner = np.concatenate([owner, imaged])
+        other = np.concatenate([other, codes // MASKS])
     overlap = radii[owner] + radii[other] - np.linalg.norm(separation, axis=1)
     touching = overlap > 0
     wall_owner = np.repeat(np.arange(n), np.diff(lists.wall_start))
@@ -218,10 +278,11 @@ def contact_overlaps(positions, radii, walls, lists):
             wall_overlap[on_wall], wall_owner[on_wall], ids[on_wall])
 
 
-def overlap_distribution(positions, radii, walls, lists):
-    """Overlaps of the contacts at ``positions`` (see Overlaps)."""
+def overlap_distribution(positions, radii, walls, lists, symmetry=None):
+    """Overlaps of the contacts at ``positions`` (see Overlaps), image contacts
+    included."""
     overlap, pair, wall_overlap, wall_grain, _ = contact_overlaps(positions, radii, walls,
-                                                                  lists)
+                                                                  lists, symmetry)
     relative = np.concatenate([overlap / np.minimum(radii[pair[:, 0]], radii[pair[:, 1]]),
                                wall_overlap / radii[wall_grain]])
     if relative.size == 0:
@@ -241,7 +302,8 @@ def youngs_table(materials):
 
 
 def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), loads=None,
-          skin=None, force_tolerance=1e-5, max_iterations=10000, update=False):
+          skin=None, force_tolerance=1e-5, max_iterations=10000, update=False,
+          symmetry=()):
     """Minimise the functional of Eq. 29 over the positions of the free grains.
 
     state : core.State (positions, radii, masses, materials);  materials : the list of
@@ -251,7 +313,8 @@ def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), l
     applied forces (None: none);  skin [m] of the candidate lists (None: 0.2 of the mean
     radius);  force_tolerance : the largest residual force component, in mean grain
     weights (module docstring);  max_iterations of L-BFGS;  update : write the relaxed
-    positions into the state (velocities are left as they are) when True.
+    positions into the state (velocities are left as they are) when True;  symmetry :
+    core.symmetry.SymmetryPlanes or a list of Symmetry planes (module docstring).
     Returns a Relaxation.  Only the positions move: 2D states keep z = 0.  From a
     soft-engine run: ``relax(sim.state, materials, walls=sim.walls)``.
     """
@@ -259,6 +322,8 @@ def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), l
         walls = Walls()
     elif not isinstance(walls, Walls):
         walls = Walls(walls)
+    if not isinstance(symmetry, SymmetryPlanes):
+        symmetry = SymmetryPlanes(symmetry, state.dim, walls.periodic_flag)
     n = state.n
     radii = np.ascontiguousarray(state.radii, dtype=np.float64)
     masses = np.ascontiguousarray(state.masses, dtype=np.float64)
@@ -288,19 +353,20 @@ def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), l
     weight = float(masses.mean()) * STANDARD_GRAVITY
     positions = reference.copy()
     gradient = np.zeros((n, 3))
-    built = {"at": reference.copy(), "lists": candidate_lists(reference, radii, skin, walls),
-             "count": 1}
+    built = {"at": reference.copy(),
+             "lists": candidate_lists(reference, radii, skin, walls, symmetry), "count": 1}
 
     def evaluate(at):
         if np.sqrt(((at - built["at"]) ** 2).sum(axis=1).max()) > 0.5 * skin:
             built["at"] = at.copy()
-            built["lists"] = candidate_lists(at, radii, skin, walls)
+            built["lists"] = candidate_lists(at, radii, skin, walls, symmetry)
             built["count"] += 1
         lists = built["lists"]
         return functional(at, reference, radii, masses, grain_materials, youngs, g, loads,
                           free, lists.start, lists.partners, walls.periodic_flag,
                           walls.periodic_length, lists.wall_start, lists.wall_ids,
-                          walls.kind, walls.geometry, walls.offset, wall_material, gradient)
+                          walls.kind, walls.geometry, walls.offset, wall_material,
+                          lists.image_start, lists.image_codes, symmetry.at, gradient)
 
     def scaled(x):
         positions[variable] = reference[variable] + x * length
@@ -308,7 +374,7 @@ def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), l
         return energy / (weight * length), gradient[variable] / weight
 
     before = evaluate(reference)
-    overlaps_before = overlap_distribution(reference, radii, walls, built["lists"])
+    overlaps_before = overlap_distribution(reference, radii, walls, built["lists"], symmetry)
     trace = [before]
 
     def record(x):
@@ -327,7 +393,8 @@ def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), l
         if g_norm > 0 and net.size else math.nan
     lists = built["lists"]
     overlap, pair, wall_overlap, wall_grain, wall_id = contact_overlaps(positions, radii,
-                                                                        walls, lists)
+                                                                        walls, lists,
+                                                                        symmetry)
     r_eff = radii[pair[:, 0]] * radii[pair[:, 1]] / (radii[pair[:, 0]] + radii[pair[:, 1]])
     pair_force = 4.0 / 3.0 * youngs[grain_materials[pair[:, 0]], grain_materials[pair[:, 1]]] \
         * np.sqrt(r_eff) * overlap**1.5
@@ -340,5 +407,6 @@ def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), l
     return Relaxation(positions.copy(), float(before), float(after), np.array(trace),
                       int(result.nit),
                       int(result.nfev), built["count"], converged, str(result.message),
-                      overlaps_before, overlap_distribution(positions, radii, walls, lists),
+                      overlaps_before,
+                      overlap_distribution(positions, radii, walls, lists, symmetry),
                       float(net_norm.max()), over_weight, largest_force)

@@ -45,7 +45,7 @@ def build(state, setup, settings: SoftEngine):
                       integrator=settings.integrator, allow_large_dt=settings.allow_large_dt,
                       overlap_limit=settings.overlap_limit,
                       check_interval=settings.check_interval,
-                      orientations=settings.orientations)
+                      orientations=settings.orientations, symmetry=setup.symmetry)
 
 
 def check(state, setup, settings: SoftEngine):
@@ -71,4 +71,4 @@ def check(state, setup, settings: SoftEngine):
 
 SOFT = EngineKind("soft", SoftEngine, build, check,
                   "time-driven soft particles: overlapping grains, contact laws, an "
-                  "explicit integrator with a fixed time step")
+                  "explicit integrator with a fixed time step", symmetry=True)

@@ -740,14 +740,16 @@ class Simulation:
 
     def relax(self, fixed=None, force_tolerance=1e-5):
         """Move the grains to the minimum of Karrech et al.'s Eq. 29 (Hertz contact
-        potentials, gravity, the walls where they are; relaxation.relax), from rest:
+        potentials, gravity, the walls where they are, the images of the symmetry
+        planes; relaxation.relax), from rest:
         the free grains are relocated there with zero velocities, without their contact
         history (relocate).  fixed : (N,) bool grains held where they are (None: the
         fixed grains).  Returns the relaxation.Relaxation report."""
         from .relaxation import relax
 
         result = relax(self.state, self.materials, walls=self.walls, fixed=fixed,
-                       gravity=self.gravity, force_tolerance=force_tolerance)
+                       gravity=self.gravity, force_tolerance=force_tolerance,
+                       symmetry=self.symmetry)
         held = self.state.fixed != 0 if fixed is None else np.asarray(fixed, bool)
         free = np.flatnonzero(~held)
         self.relocate(free, result.positions[free], np.zeros((free.size, 3)))
