@@ -7,10 +7,13 @@ __version__ = "0.1.0"
 from .core.species import ContactModel, Material
 from .core.state import State, cell_order, sample_radii
 from .core.triggers import EnergyRatioBelow, MaxSpeedBelow, Periodic
-from .core.walls import Cylinder, Motion, Periodic as PeriodicBoundary, Plane, Segment, box
+from .core.symmetry import Symmetry
+from .core.walls import (Cylinder, Disk, Motion, Periodic as PeriodicBoundary, Plane, Segment,
+                         box)
 from .engines.soft.ensemble import Ensemble
 from .engines.soft.simulation import Simulation, SimulationError
 
 __all__ = ["Simulation", "SimulationError", "Ensemble", "ContactModel", "Material", "State",
            "cell_order", "sample_radii", "EnergyRatioBelow", "MaxSpeedBelow", "Periodic", "Cylinder",
-           "Motion", "PeriodicBoundary", "Plane", "Segment", "box", "__version__"]
+           "Disk", "Motion", "PeriodicBoundary", "Plane", "Segment", "Symmetry", "box",
+           "__version__"]

@@ -11,7 +11,7 @@ import pytest
 import graindyn as gd
 from graindyn.analysis.packing import coordination_number
 from graindyn.config import ConfigError, build, validate
-from graindyn.core.symmetry import Symmetry, SymmetryPlanes
+from graindyn.core.symmetry import SymmetryPlanes
 from graindyn.core.triggers import EnergyRatioBelow
 from graindyn.protocols import Vessel
 from graindyn.protocols.prepare import settle
@@ -36,7 +36,7 @@ pytestmark = pytest.mark.usefixtures("one_thread")
 
 def test_the_quarter_vessel_is_a_quarter_of_the_cylinder():
     whole = Vessel.cylinder((1e-3, 2e-3), RADIUS, 0.04)
-    planes = [Symmetry("x", 1e-3), Symmetry("y", 2e-3, side=-1)]
+    planes = [gd.Symmetry("x", 1e-3), gd.Symmetry("y", 2e-3, side=-1)]
     part = whole.mirrored(planes)
     assert part.cross_section == pytest.approx(whole.cross_section / 4)
     assert part.perimeter == pytest.approx(whole.perimeter / 4)
@@ -45,10 +45,10 @@ def test_the_quarter_vessel_is_a_quarter_of_the_cylinder():
     lo, hi, _ = region.bounds(3)
     assert region.volume(3) == pytest.approx(part.cross_section * 0.01)
     with pytest.raises(ValueError, match="through its axis"):
-        whole.mirrored([Symmetry("x", 0.0)])
+        whole.mirrored([gd.Symmetry("x", 0.0)])
     with pytest.raises(ValueError, match="horizontal axis"):
-        whole.mirrored([Symmetry("z", 0.0)])
-    box = Vessel.box((0.0, 0.0), (0.02, 0.01), True, 2).mirrored([Symmetry("x", 0.01)])
+        whole.mirrored([gd.Symmetry("z", 0.0)])
+    box = Vessel.box((0.0, 0.0), (0.02, 0.01), True, 2).mirrored([gd.Symmetry("x", 0.01)])
     assert box.cross_section == pytest.approx(0.01) and box.perimeter == pytest.approx(1.0)
 
 
@@ -117,3 +117,26 @@ def test_quarter_and_full_bed_carry_the_same_bottom_stress_and_coordination(quar
     assert ratio_q == pytest.approx(ratio_f, rel=0.01)
     assert sigma_q == pytest.approx(sigma_f, rel=0.01)
     assert z_q == pytest.approx(z_f, rel=0.01)
+
+
+def test_quarter_deposition_reports_its_settling_history(tmp_path):
+    """Karrech et al.'s Fig. 3 for the quarter bed run through the runner: the bottom
+    force over the weight, the coordination and the packing fraction against time, the
+    last row the settled bed's report (the packing fraction from the floor to the
+    highest grain over the quarter's cross-section)."""
+    from graindyn.runner import execute
+
+    data = copy.deepcopy(QUARTER)
+    data["output"] = {"series_every": 0.01, "figures": True}
+    results = execute(validate(data), tmp_path / "run", show_progress=False,
+                      echo=lambda *a: None)
+    history = results["history"]
+    times = [r["time_s"] for r in history]
+    assert len(history) > 20 and times == sorted(times)
+    last = history[-1]
+    assert last["time_s"] == pytest.approx(results["time_s"])
+    assert last["coordination"] == pytest.approx(results["coordination_number"])
+    assert last["apparent_weight_ratio"] == pytest.approx(results["apparent_weight_ratio"])
+    assert last["packing_fraction"] == pytest.approx(results["packing_fraction"])
+    assert history[0]["packing_fraction"] < 0.2 < last["packing_fraction"]   # a cloud, then a bed
+    assert (tmp_path / "run" / "figures" / "deposition.png").stat().st_size > 10_000

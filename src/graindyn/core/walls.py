@@ -1,13 +1,14 @@
 """Walls and boundaries: planes, axis-aligned boxes, the inside of a cylinder, finite
-segments (2D) and rectangles (3D), periodic directions; prescribed wall motion.  Walls
+segments (2D) and rectangles (3D), disks (3D), periodic directions; prescribed wall
+motion.  Walls
 are geometry only: their contact forces come from the same
 physics.contact.contact_force as grain pairs, with R_j = infinity.
 
-Kernel layout (``Walls.arrays``): kind (W,) 0 plane / 1 cylinder inside / 2 segment;
-geometry (W, 10) (GEOMETRY_WIDTH): plane: origin (3), unit normal (3), 0, 0 0 0;
+Kernel layout (``Walls.arrays``): kind (W,) 0 plane / 1 cylinder inside / 2 segment /
+3 disk; geometry (W, 10) (GEOMETRY_WIDTH): plane: origin (3), unit normal (3), 0, 0 0 0;
 cylinder: a point of the axis (3), unit axis (3), radius [m], 0 0 0; segment: start
 (corner) (3), first edge end - start (3) [m], 0, second edge (3) [m] (0 0 0 for a line
-segment); motion_kind (W,)
+segment); disk: centre (3), unit normal (3), radius [m], 0 0 0; motion_kind (W,)
 0 fixed / 1 constant velocity / 2 sinusoid / 3 servo / 4 piston; motion (W, 9)
 (MOTION_WIDTH) = unit direction (3), then speed [m/s], amplitude [m], frequency [Hz],
 phase [rad] (velocity, sinusoid) or target force [N], gain [m/(N s)], largest speed
@@ -43,7 +44,7 @@ import numpy as np
 
 from .._jit import scalar, kernel
 
-PLANE, CYLINDER, SEGMENT = 0, 1, 2
+PLANE, CYLINDER, SEGMENT, DISK = 0, 1, 2, 3
 GEOMETRY_WIDTH = 10        # columns of Walls.geometry (module docstring)
 FIXED, VELOCITY, SINUSOID, SERVO, PISTON = 0, 1, 2, 3, 4
 MOTION_WIDTH = 9           # columns of Walls.motion (module docstring)
@@ -242,6 +243,53 @@ class Segment:
         return SEGMENT, np.array([*_point(self.start, "segment start"), *a, 0.0, *b])
 
 
+@dataclass
+class Disk:
+    """A flat circular plate (3D): the disk of ``radius`` [m] centred at ``center`` [m]
+    in the plane normal to ``normal``, a thin rigid plate which grains touch from either
+    side (the loading plate of a cylinder that covers only part of its top).
+
+    Contact: as for a Segment's rectangle, the distance is from the grain centre to the
+    closest point of the disk, its rim included, and the normal points from that point
+    to the centre.  With n the unit normal, p the centre of the grain relative to the
+    centre of the disk, h = p . n and rho = |p - h n| its distance from the axis:
+
+        rho <= R:  distance |h|,                        normal sign(h) n  (n when h = 0);
+        rho > R:   distance sqrt(h^2 + (rho - R)^2),   normal (h n + (rho - R) e) / distance,
+
+    e = (p - h n) / rho the outward radial direction: beyond the rim the grain touches
+    the rim's nearest point, so a grain at the edge of the plate is pushed along the line
+    from the rim to its centre.  Zero thickness, like the Segment: it holds grains only
+    while their overlap stays below their radius.
+
+    area [m^2] turns the wall force into a stress: pi R^2 when None.  The normal force
+    (Walls.normal_force) is |F . n|, the magnitude of the grains' force along the normal
+    (either side).
+    """
+
+    center: tuple
+    normal: tuple
+    radius: float
+    material: int = 0
+    motion: Motion = field(default_factory=Motion)
+    name: str = "disk"
+    area: float | None = None
+
+    def __post_init__(self):
+        if not (self.radius > 0 and math.isfinite(self.radius)):
+            raise ValueError(f"disk {self.name!r}: radius must be finite and > 0 [m], got "
+                             f"{self.radius}")
+        if self.area is None:
+            self.area = math.pi * float(self.radius) ** 2
+
+    def row(self):
+        center = np.asarray(self.center, dtype=np.float64)
+        if center.shape != (3,) or not np.all(np.isfinite(center)):
+            raise ValueError(f"disk {self.name!r}: center must be a finite 3-vector [m], got "
+                             f"{center}")
+        return DISK, np.array([*center, *_unit(self.normal, "disk normal"), float(self.radius)])
+
+
 def box(lo, hi, material=0, open_top=True, dim=3):
     """The planes of an axis-aligned box [lo, hi] [m], inward normals, named by face.
 
@@ -330,6 +378,10 @@ class Walls:
         if segment.any():
             dist[segment], normal[segment] = _segment_distances(
                 rel[segment], axis[segment], g[segment, 7:10], along[segment])
+        disk = self.kind[ids] == DISK
+        if disk.any():
+            dist[disk], normal[disk] = _disk_distances(along[disk], axis[disk], perp[disk],
+                                                       rho[disk], g[disk, 6])
         return dist, normal
 
     def index(self, name):
@@ -414,10 +466,14 @@ class Walls:
         return wrapped
 
     def normal_force(self, k):
-        """Force [N] the grains push on wall k along its inward normal (plane), or its
-        magnitude (cylinder: outward; segment: either side)."""
-        return float(-self.force[k] @ self.geometry[k, 3:6]) if self.kind[k] == PLANE \
-            else float(np.linalg.norm(self.force[k]))
+        """Force [N] the grains push on wall k along its inward normal (plane), its
+        magnitude (cylinder: outward; segment: either side) or the magnitude of its
+        component along the normal (disk: either side)."""
+        if self.kind[k] == PLANE:
+            return float(-self.force[k] @ self.geometry[k, 3:6])
+        if self.kind[k] == DISK:
+            return abs(float(self.force[k] @ self.geometry[k, 3:6]))
+        return float(np.linalg.norm(self.force[k]))
 
     def stress(self, k):
         """Normal stress [Pa] on wall k: normal force over its area (None if no area)."""
@@ -446,12 +502,27 @@ def _segment_distances(rel, a, b, along):
     return rho, r / np.where(on, 1.0, rho)[:, None]
 
 
+def _disk_distances(along, n, perp, rho, radius):
+    """Distance [m] from disks of unit normals n (K, 3) and radii (K,) [m] to points at
+    height ``along`` over their plane and ``perp`` (K, 3) from their axis (|perp| = rho),
+    and the unit normals: wall_distance's disk branch (Disk)."""
+    over = rho - radius
+    outside = over > 0
+    face = np.where((along < 0)[:, None], -n, n)
+    safe = np.where(rho > 0, rho, 1.0)[:, None]
+    r = along[:, None] * n + np.maximum(over, 0.0)[:, None] * perp / safe
+    dist = np.where(outside, np.hypot(along, np.maximum(over, 0.0)), np.abs(along))
+    normal = np.where(outside[:, None], r / np.where(outside, dist, 1.0)[:, None], face)
+    return dist, normal
+
+
 @scalar
 def wall_distance(kind, geometry, offset, w, x, y, z):
     """Distance [m] from the surface of wall w to a point, and the unit normal pointing
     from the wall to the point (plane: signed distance on the normal side; cylinder:
     radius minus the distance to the axis; segment: distance to its closest point,
-    edges and ends included, >= 0 on either side)."""
+    edges and ends included, >= 0 on either side; disk: distance to its closest point,
+    rim included, >= 0 on either side, Disk)."""
     px = x - geometry[w, 0] - offset[w, 0]
     py = y - geometry[w, 1] - offset[w, 1]
     pz = z - geometry[w, 2] - offset[w, 2]
@@ -492,6 +563,19 @@ def wall_distance(kind, geometry, offset, w, x, y, z):
     ry = py - along * ay
     rz = pz - along * az
     rho = math.sqrt(rx * rx + ry * ry + rz * rz)
+    if kind[w] == DISK:        # (ax, ay, az) is the unit normal; (rx, ry, rz) off the axis
+        over = rho - geometry[w, 6]
+        if over <= 0.0:        # over the face
+            if along < 0.0:
+                return -along, -ax, -ay, -az
+            return along, ax, ay, az
+        scale = over / rho     # from the rim's nearest point to the point: along n + over e
+        dx = along * ax + scale * rx
+        dy = along * ay + scale * ry
+        dz = along * az + scale * rz
+        dist = math.sqrt(along * along + over * over)
+        inverse = 1.0 / dist
+        return dist, dx * inverse, dy * inverse, dz * inverse
     if rho == 0.0:
         return geometry[w, 6], 1.0, 0.0, 0.0
     inverse = 1.0 / rho      # one division, not three (the CPU's wall walk: scalar)

@@ -5,7 +5,7 @@ normal force, grains of interest (a silo's blocking arch) highlighted.  2D as it
 their cross-sections, and the contacts between them)."""
 import numpy as np
 
-from ..core.walls import PLANE, SEGMENT
+from ..core.walls import DISK, PLANE, SEGMENT
 
 
 def draw_network(engine, path, marked=(), title="", slice_width=None):
@@ -73,14 +73,23 @@ def section(state, slice_width=None):
 
 
 def _draw_walls(ax, walls, across, up, lo, hi):
-    """Segments as they are, planes whose normal lies in the picture as lines across it
-    (in the picture's axes ``across``, ``up``; the view spans lo..hi)."""
+    """Segments as they are, planes whose normal lies in the picture as lines across it,
+    disks whose normal lies in the picture as their diameter (in the picture's axes
+    ``across``, ``up``; the view spans lo..hi)."""
     for w in range(len(walls)):
         g = walls.geometry[w]
         origin = g[:3] + walls.offset[w]
         if walls.kind[w] == SEGMENT:
             end = origin + g[3:6]
             ax.plot([origin[across], end[across]], [origin[up], end[up]], color="C0", lw=2)
+        elif walls.kind[w] == DISK:      # its diameter in the picture, when it is seen edge-on
+            normal = g[3:6][[across, up]]
+            size = float(np.linalg.norm(normal))
+            if size > 0.99:
+                tangent = g[6] * np.array([-normal[1], normal[0]]) / size
+                centre = origin[[across, up]]
+                ax.plot([centre[0] - tangent[0], centre[0] + tangent[0]],
+                        [centre[1] - tangent[1], centre[1] + tangent[1]], color="C0", lw=2)
         elif walls.kind[w] == PLANE:
             normal = g[3:6][[across, up]]
             if abs(normal[0]) > 0.99:

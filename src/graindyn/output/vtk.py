@@ -4,7 +4,7 @@ and a .pvd time collection per series.
 - grains: vertex cells at the centres with point arrays radius [m], velocity [m/s],
   angular_velocity [rad/s], force [N], torque [N m], material [-], fixed [-];
 - walls: planes as rectangles spanning the grains' bounding box, cylinders as tubes of
-  quads, with cell arrays wall [-] (index) and force [N] (grains on the wall);
+  quads, segments as their rectangles, disks as fans of quads, with cell arrays wall [-] (index) and force [N] (grains on the wall);
 - contacts (optional): a line per touching pair, cell arrays normal_force [N] and
   force [N] (on the first grain).
 """
@@ -14,7 +14,7 @@ import xml.etree.ElementTree as ET
 import meshio
 import numpy as np
 
-from ..core.walls import PLANE, SEGMENT
+from ..core.walls import DISK, PLANE, SEGMENT
 
 
 def grains_mesh(state, marked=None):
@@ -50,7 +50,8 @@ def _frame(normal):
 def walls_mesh(walls, lo, hi, segments=48):
     """The walls as quads (planes: a square as wide as the box [lo, hi] [m] around the
     grains; cylinders: a tube between the box's ends along the axis; segments: their
-    rectangle, a 2D segment as a strip across z)."""
+    rectangle, a 2D segment as a strip across z; disks: a fan of ``segments`` quads,
+    each with its last corner repeated, around the centre)."""
     points, quads, ids = [], [], []
     centre = 0.5 * (lo + hi)
     size = float(np.linalg.norm(hi - lo)) or 1.0
@@ -77,6 +78,15 @@ def walls_mesh(walls, lo, hi, segments=48):
             ids.append(w)
             continue
         u, v = _frame(axis)
+        if walls.kind[w] == DISK:
+            points.append(origin)
+            for t in np.linspace(0.0, 2.0 * np.pi, segments, endpoint=False):
+                points.append(origin + g[6] * (np.cos(t) * u + np.sin(t) * v))
+            for k in range(segments):
+                a, b = base + 1 + k, base + 1 + (k + 1) % segments
+                quads.append([base, a, b, b])
+                ids.append(w)
+            continue
         along = [np.dot(lo - origin, axis), np.dot(hi - origin, axis)]
         for t in np.linspace(0.0, 2.0 * np.pi, segments, endpoint=False):
             ring = g[6] * (np.cos(t) * u + np.sin(t) * v)

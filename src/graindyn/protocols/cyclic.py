@@ -2,10 +2,10 @@
 Sec. 2 and 5, Fig. 2): the molecular-dynamics part of their long-term settlement study.
 
 Phases: "settle" (grains spread at random in the container, settled under gravity until
-E_kin/E_pot <= threshold, Karrech Sec. 3) and "cycles": the plate, a plane over the
-whole top of the sample, is put just above the highest grain and becomes a piston
-(core.walls, piston motion) of mass ``plate_mass`` under gravity, pushed down by the
-stress signal
+E_kin/E_pot <= threshold, Karrech Sec. 3) and "cycles": the plate (a plane over the
+whole top of the sample, or a finite plate over part of it: below) is put just above
+the highest grain under it and becomes a piston (core.walls, piston motion) of mass
+``plate_mass`` under gravity, pushed down by the stress signal
 
     sigma(t) = static_stress + (stress_amplitude / 2) (1 - cos(2 pi f (t - t_0))),
 
@@ -23,9 +23,29 @@ u_beta(p) = r_beta(t_0 + p T) - r_beta(t_0), written to residuals/cycle_NNNNNN.n
 the run directory (``load_residuals`` reads them back as one (cycles, N, 3) array, the
 training data of analysis.settlement).
 
-Only the fully confined mode (the plate over the whole surface) is built; the partially
-confined mode (a plate over 80 % of the width) and the quarter model with symmetry
-planes are not.
+Two modes (Karrech Sec. 5.3).  Fully confined (``plate_fraction = 1``, the default): the
+plate is an infinite plane over the whole top of the sample.  Partially confined
+(``plate_fraction`` < 1; the paper's case is "a confinement level of 80 %" at 5.87 kPa
+and 10 Hz): the plate is a finite rigid plate centred on the container's axis whose
+width is ``plate_fraction`` times the container's width, and the grains beside it are a
+free surface.  Our reading of "80 % of the width", which the paper does not define
+further: in a cylinder of radius R a disk (core.walls.Disk) of diameter fraction x 2R,
+area pi (fraction R)^2 (0.64 of the cross-section at 80 %); in a 3D box of sides
+L_x, L_y a rectangle (core.walls.Segment with a second edge) of sides fraction L_x,
+fraction L_y, area fraction^2 L_x L_y, a copy of the cross-section scaled about its
+centre as the disk is; in 2D a line segment of length fraction L_x (per unit depth).
+The plate is thin and two-sided, and a grain at its edge touches the nearest point of
+its rim.  The stress signal acts on the plate's own area A_p: the applied force is
+A_p sigma(t) + M g, and the recorded sigma_plate is the plate's vertical force over A_p;
+the settlement is the plate's descent as in the full mode.  The packing fraction is the
+solid volume over the cross-section times the plate's height above the floor in both
+modes (beside a partial plate the free surface may stand higher or lower).
+
+With symmetry planes (the quarter model, protocols.base.Vessel.mirrored) the vessel is
+the part of the container they leave: a partial plate is still the whole container's,
+centred on the planes (a disk on the cylinder's axis), and its area, the stress's and
+sigma_plate's, is the share of it on the grains' side, fraction^2 times that part's
+cross-section.
 """
 import pathlib
 from typing import Literal
@@ -34,7 +54,7 @@ import numpy as np
 from ..analysis.packing import coordination_number
 from ..analysis.energy import energy_budget
 from ..analysis.settlement import fit_residual
-from ..core.walls import Motion, Plane
+from ..core.walls import Disk, Motion, Plane, Segment
 from ..schema import Float, Int, described as _f
 from .base import Protocol, ProtocolPhase, lower_onto_grains, register, run_until, write_rows
 from .deposition import save_figure
@@ -45,9 +65,10 @@ PARK = 100.0
 
 
 class CyclicSettings(SettleSettings):
-    """Settle, then load the bed cyclically through a rigid top plate (Karrech et al.):
-    the stress on the plate a haversine of ``stress_amplitude`` at ``frequency`` above
-    ``static_stress`` (module docstring), ``cycles`` cycles."""
+    """Settle, then load the bed cyclically through a rigid top plate (Karrech et al.)
+    over ``plate_fraction`` of the container's width: the stress on the plate's area a
+    haversine of ``stress_amplitude`` at ``frequency`` above ``static_stress`` (module
+    docstring), ``cycles`` cycles."""
 
     kind: Literal["cyclic"] = "cyclic"
     stress_amplitude: Float = _f(14.15e3, "Delta sigma [Pa]: the stress on the plate goes "
@@ -71,6 +92,12 @@ class CyclicSettings(SettleSettings):
     computed_cycles: Int = _f(10, "k: cycles computed per round, the training data of its "
                               "extrapolation; >= 2", ge=2)
     extrapolated_cycles: Int = _f(10, "h: cycles extrapolated per round; >= 1", ge=1)
+    plate_fraction: Float = _f(
+        1.0, "the fraction of the container's width the plate covers [-], in (0, 1]: 1 an "
+        "infinite plane over the whole top (fully confined); < 1 a finite plate centred on "
+        "the axis (partially confined): a disk of diameter fraction x the cylinder's "
+        "diameter, or a rectangle of fraction x each side of a box (a segment of fraction "
+        "x the width in 2D)", gt=0, le=1)
     hold_frontier: bool = _f(False, "hold the grains touching the container's walls where "
                              "the extrapolation put them while the others relax (Karrech "
                              "Sec. 4); false: every grain relaxes, the walls confining them")
@@ -109,27 +136,21 @@ class Cyclic(Protocol):
             if settings.plate_material is not None else []
 
     def walls(self, container, material_index):
-        """The container and the plate: a plane facing down, parked PARK container
-        heights above the floor (out of the way of a dilute cloud of grains: a solid
-        fraction of 0.05 settles to about a tenth of its height) until the cycles put it
-        on the bed."""
-        v = self.vessel
-        material = material_index(self.p.plate_material)
-        park = v.floor + PARK * (v.top - v.floor)
-        if v.dim == 2:
-            point, normal = (0.5 * (v.lo[0] + v.hi[0]), park, 0.0), (0.0, -1.0, 0.0)
-        else:
-            center = v.center if v.center is not None \
-                else tuple(0.5 * (np.asarray(v.lo[:2]) + v.hi[:2]))
-            point, normal = (*center, park), (0.0, 0.0, -1.0)
-        return list(container) + [Plane(point, normal, material, name=PLATE,
-                                        area=v.cross_section)]
+        """The container and the plate, parked PARK container heights above the floor
+        (out of the way of a dilute cloud of grains: a solid fraction of 0.05 settles to
+        about a tenth of its height) until the cycles put it on the bed: a plane facing
+        down (plate_fraction = 1), or a disk, a rectangle (3D box) or a segment (2D)
+        centred on the container's axis (plate_fraction < 1; plate_geometry)."""
+        return list(container) + [plate_wall(self.p.plate_fraction, self.vessel,
+                                             material_index(self.p.plate_material))]
 
     def results(self, engine, states):
         cycles = states["cycles"]
         out = {"deposition": states["settle"]["report"], "cycles": cycles["rows"],
                "extrapolations": cycles.get("jumps", []),
                "signal": "sigma(t) = static + amplitude (1 - cos(2 pi f (t - t0))) / 2"}
+        out["plate_fraction"] = self.p.plate_fraction
+        out["plate_area_m2"] = plate_area(self.p.plate_fraction, self.vessel)
         last = [(r["cycle"], r["settlement_m"]) for r in out["cycles"]] + [
             (j["to_cycle"], j["settlement_m"]) for j in out["extrapolations"]]
         if last:
@@ -155,7 +176,7 @@ class Cyclic(Protocol):
         ax[1].plot(n, [r["coordination"] for r in rows], "o-")
         ax[1].set(xlabel="cycle", ylabel="coordination number [-]")
         t = series["time [s]"]
-        ax[2].plot(t, series[f"force_{PLATE} [N]"] / self.vessel.cross_section / 1e3)
+        ax[2].plot(t, series[f"force_{PLATE} [N]"] / results["plate_area_m2"] / 1e3)
         ax[2].set(xlabel="t [s]", ylabel="plate stress [kPa]")
         fig.suptitle(f"{self.title}: {len(rows)} load cycles, "
                      f"{results['deposition'].get('grains', '?')} grains")
@@ -176,15 +197,19 @@ class Cycles(ProtocolPhase):
         up = v.dim - 1                                  # the vertical axis
         if "start_s" not in state:
             s = engine.state
-            lower_onto_grains(engine, k)
+            if p.plate_fraction == 1.0:
+                lower_onto_grains(engine, k)
+            else:
+                seat_plate(engine, k)
+            area = plate_area(p.plate_fraction, v)
             mass = p.plate_mass if p.plate_mass is not None else float(np.sum(s.masses))
             weight = mass * float(np.linalg.norm(engine.gravity))
-            half = 0.5 * p.stress_amplitude * v.cross_section
+            half = 0.5 * p.stress_amplitude * area
             direction = [0.0, 0.0, 0.0]
             direction[up] = -1.0
             engine.set_motion(k, Motion(
                 "piston", direction=tuple(direction), mass=mass,
-                force=p.static_stress * v.cross_section + weight + half,
+                force=p.static_stress * area + weight + half,
                 force_amplitude=half, frequency=p.frequency, phase=-0.5 * np.pi,
                 start=engine.time))
             state.update(start_s=engine.time, plate_0=self._plate(engine, k), rows=[],
@@ -282,6 +307,14 @@ class Cycles(ProtocolPhase):
         up = self.vessel.dim - 1
         return float(engine.walls.geometry[k, up] + engine.walls.offset[k, up])
 
+    def _plate_force(self, engine, k):
+        """Force [N] of the grains on the plate, upwards: the normal force of the plane
+        (Walls.normal_force), the vertical component of the force on a finite plate
+        (its friction on the grains left out)."""
+        if self.p.plate_fraction == 1.0:
+            return engine.walls.normal_force(k)
+        return float(engine.walls.force[k, self.vessel.dim - 1])
+
     def _record(self, engine, state, k):
         """The row of the cycle that ends now, and its residual displacements."""
         v, s = self.vessel, engine.state
@@ -299,7 +332,8 @@ class Cycles(ProtocolPhase):
         e = energy_budget(engine)
         row = {"cycle": cycle, "time_s": engine.time,
                "settlement_m": state["plate_0"] - plate, "plate_height_m": plate,
-               "sigma_plate_Pa": walls.normal_force(k) / v.cross_section,
+               "sigma_plate_Pa": self._plate_force(engine, k)
+               / plate_area(self.p.plate_fraction, v),
                "sigma_bottom_Pa": walls.normal_force(walls.index(v.bottom_wall))
                / v.cross_section, "sigma_lateral_Pa": lateral,
                "packing_fraction": solid / (v.cross_section * height),
@@ -312,6 +346,101 @@ class Cycles(ProtocolPhase):
             state.setdefault("round", []).append(self._round_record(engine, k))
         self.protocol.log(f"cycle {cycle}: settlement {1e3 * row['settlement_m']:.4g} mm, "
                           f"coordination {row['coordination']:.3f}")
+
+
+def plate_geometry(fraction, vessel):
+    """The plate over ``fraction`` (0, 1] of the width of ``vessel`` (protocols.base.Vessel),
+    centred on its axis, its face at height 0: ("plane", point, normal) for fraction 1;
+    ("disk", centre, normal, radius [m]) in a cylinder; ("rectangle", corner, edge_x,
+    edge_y) in a 3D box and ("segment", start, end) in 2D, their edges fraction times
+    the box's sides [m] (module docstring).  The normal points down, into the grains.
+    With symmetry planes (Vessel.mirrored) the plate is that of the whole container,
+    centred on the planes, and the grains see the part of it on their side."""
+    v = vessel
+    down = (0.0, -1.0, 0.0) if v.dim == 2 else (0.0, 0.0, -1.0)
+    centre = np.zeros(3)
+    width = np.subtract(v.hi[:-1], v.lo[:-1])
+    if v.center is not None:
+        centre[:2] = v.center
+    else:
+        centre[:v.dim - 1] = 0.5 * (np.asarray(v.lo[:-1]) + v.hi[:-1])
+    for plane in v.symmetry:               # the whole container's middle and sides
+        centre[plane.index] = plane.at
+        width[plane.index] *= 2.0
+    if fraction == 1.0:
+        return "plane", tuple(centre), down
+    if v.shape == "cylinder":
+        return "disk", tuple(centre), down, fraction * v.radius
+    half = 0.5 * fraction * width
+    if v.dim == 2:
+        return "segment", (centre[0] - half[0], 0.0, 0.0), (centre[0] + half[0], 0.0, 0.0)
+    corner = (centre[0] - half[0], centre[1] - half[1], 0.0)
+    return "rectangle", corner, (2.0 * half[0], 0.0, 0.0), (0.0, 2.0 * half[1], 0.0)
+
+
+def plate_area(fraction, vessel):
+    """Area [m^2] (2D: length [m], per unit depth) of the part of the plate over
+    ``fraction`` of the width of ``vessel`` that the grains see: fraction^(dim - 1)
+    times the vessel's cross-section, i.e. pi (fraction R)^2 in a cylinder of radius R,
+    fraction^2 L_x L_y in a 3D box, fraction L_x in 2D, the share of it the symmetry
+    planes leave (Vessel.mirrored) with them; the cross-section for fraction 1."""
+    if fraction == 1.0:
+        return vessel.cross_section
+    return fraction ** (vessel.dim - 1) * vessel.cross_section
+
+
+def plate_wall(fraction, vessel, material, height=None):
+    """The plate wall (core.walls) named PLATE of plate_geometry, at ``height`` [m]
+    (default: PARK container heights above the floor), its area plate_area: a Plane
+    (fraction 1), a Disk (cylinder) or a Segment (a rectangle in a 3D box, a line
+    segment in 2D)."""
+    v = vessel
+    up = v.dim - 1
+    if height is None:
+        height = v.floor + PARK * (v.top - v.floor)
+    kind, *shape = plate_geometry(fraction, v)
+    lift = np.zeros(3)
+    lift[up] = height
+    area = plate_area(fraction, v)
+    if kind == "plane":
+        point, normal = shape
+        return Plane(tuple(point + lift), normal, material, name=PLATE, area=area)
+    if kind == "disk":
+        centre, normal, radius = shape
+        return Disk(tuple(centre + lift), normal, radius, material, name=PLATE, area=area)
+    if kind == "segment":
+        start, end = shape
+        return Segment(tuple(start + lift), tuple(end + lift), material, name=PLATE,
+                       area=area)
+    corner, edge_x, edge_y = shape
+    return Segment(tuple(corner + lift), tuple(corner + lift + edge_x), material,
+                   name=PLATE, area=area, edge=edge_y)
+
+
+def seat_plate(engine, k):
+    """Put the finite plate k (a Disk or Segment facing down the vertical axis) at 1e-3
+    of the smallest radius above the highest grain under it: a grain whose centre is at
+    horizontal distance d [m] from the plate's footprint (0 under it, the distance to
+    the rim beside it) and d < R_i first touches the plate at height
+    z_i + sqrt(R_i^2 - d^2); grains farther out are left out (the free surface beside
+    the plate).  d is the distance from the plate to the grain's centre brought to the
+    plate's height (Walls.distances).  No grain under it: the plate goes above the
+    highest grain (protocols.base.lower_onto_grains)."""
+    s, walls = engine.state, engine.walls
+    up = s.dim - 1
+    k = walls.index(k)
+    height = walls.geometry[k, up] + walls.offset[k, up]
+    probes = s.positions.copy()
+    probes[:, up] = height
+    d, _ = walls.distances(probes, np.full(s.n, k))
+    under = d < s.radii
+    if not under.any():
+        lower_onto_grains(engine, k)
+        return
+    top = s.positions[under, up] + np.sqrt(s.radii[under] ** 2 - d[under] ** 2)
+    offset = walls.offset[k].copy()
+    offset[up] = float(top.max()) + 1e-3 * float(s.radii.min()) - walls.geometry[k, up]
+    engine.place_wall(k, offset)
 
 
 def residual_cycles(run_dir):

@@ -35,22 +35,37 @@ class Deposition(Protocol):
         return states["settle"]["report"]
 
     def figures(self, rundir, series, results):
-        """Kinetic energy and bottom force against time (from the saved series)."""
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        t = series["time [s]"]
-        fig, ax = plt.subplots(1, 2, figsize=(10, 4))
-        ax[0].semilogy(t, series["kinetic [J]"] + series["rotational [J]"])
-        ax[0].set(xlabel="t [s]", ylabel="kinetic energy [J]")
-        ax[1].plot(t, series[f"force_{self.vessel.bottom_wall} [N]"]
-                   / results["total_weight_N"])
-        ax[1].axhline(1.0, color="k", lw=0.5)
-        ax[1].set(xlabel="t [s]", ylabel="bottom force / weight [-]")
-        fig.suptitle(f"{self.title}: packing fraction "
-                     f"{results.get('packing_fraction', float('nan')):.3f}")
+        """Kinetic energy (from the saved series), and the apparent weight, coordination
+        and packing fraction of the settling history (Karrech et al.'s Fig. 3), against
+        time."""
+        fig = settling_figure(series, results, f"{self.title}: packing fraction "
+                              f"{results.get('packing_fraction', float('nan')):.3f}")
         return [save_figure(fig, rundir, "deposition.png")]
+
+
+def settling_figure(series, report, title):
+    """The figure of a settled sample's ``report`` (phases.Settle): kinetic energy
+    against time from ``series``, and its history (bottom force over the weight,
+    coordination number, packing fraction) against time."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = series["time [s]"]
+    fig, ax = plt.subplots(1, 4, figsize=(18, 4))
+    ax[0].semilogy(t, series["kinetic [J]"] + series["rotational [J]"])
+    ax[0].set(xlabel="t [s]", ylabel="kinetic energy [J]")
+    rows = report.get("history", [])
+    times = [r["time_s"] for r in rows]
+    for a, key, label in ((ax[1], "apparent_weight_ratio", "bottom force / weight [-]"),
+                          (ax[2], "coordination", "coordination number [-]"),
+                          (ax[3], "packing_fraction", "packing fraction [-]")):
+        a.plot(times, [r[key] for r in rows])
+        a.set(xlabel="t [s]", ylabel=label)
+    ax[1].axhline(1.0, color="k", lw=0.5)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig
 
 
 def save_figure(fig, rundir, name):

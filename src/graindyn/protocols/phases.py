@@ -5,6 +5,7 @@ from typing import Literal
 
 import numpy as np
 
+from ..analysis.packing import coordination_number, packing_fraction
 from ..core.triggers import EnergyRatioBelow, MaxSpeedBelow, Periodic
 from ..schema import Float, Section, described as _f
 from .base import Phase, run_until
@@ -66,9 +67,13 @@ class Settle(Phase):
     ``max_time`` passes.  The criterion is armed only after the free-fall time
     sqrt(2 h / g) of the highest grain above the floor: grains released at rest have
     E_kin/E_pot ~ 0 before they start to fall.  Its report (prepare.settle_report): the
-    sample's packing fraction, coordination, apparent weight on the bottom."""
+    sample's packing fraction, coordination, apparent weight on the bottom, and their
+    ``history`` while it settles (Karrech et al.'s Fig. 3: time [s], bottom force over
+    the weight, coordination number, packing fraction of the bed between the floor and
+    its highest grain), sampled between compiled chunks at most HISTORY_ROWS times."""
 
     name = "settle"
+    HISTORY_ROWS = 400
 
     def __init__(self, settings: SettleSettings, vessel):
         self.p = settings
@@ -88,18 +93,42 @@ class Settle(Phase):
             g = float(np.linalg.norm(engine.gravity))
             fall = math.sqrt(2.0 * max(drop, 0.0) / g) if g > 0 else 0.0
             state["armed_time"] = min(state["end_time"], engine.time + fall)
-        status = run_until(engine, state, "armed_time", 0.0, every=every, between=between)
+        history = state.setdefault("history", [])
+        spacing = self.p.max_time / self.HISTORY_ROWS
+
+        def sample(engine):
+            if not history or engine.time >= history[-1]["time_s"] + spacing:
+                history.append(self.sample(engine))
+            return between is not None and between(engine)
+        status = run_until(engine, state, "armed_time", 0.0, every=every, between=sample)
         if status == "done":
             status = run_until(engine, state, "end_time", 0.0, until=self.criterion,
-                               every=every, between=between)
+                               every=every, between=sample)
         if status != "stopped":
             state["reached"] = status == "condition"
+            history.append(self.sample(engine))
             state["report"] = self.report(engine, state)
         return "stopped" if status == "stopped" else "done"
 
+    def sample(self, engine):
+        """One row of the settling history (class docstring)."""
+        s, v = engine.state, self.vessel
+        up = v.dim - 1
+        top = float(np.max(s.positions[:, up] + s.radii))
+        weight = float(np.sum(s.masses[s.fixed == 0]) * np.linalg.norm(engine.gravity))
+        walls = engine.walls
+        return {"time_s": engine.time,
+                "apparent_weight_ratio": walls.normal_force(walls.index(v.bottom_wall))
+                / weight if weight > 0 else math.nan,
+                "coordination": coordination_number(engine),
+                "packing_fraction": packing_fraction(s, v.cross_section, v.floor, top)
+                if top > v.floor else math.nan}
+
     def report(self, engine, state):
-        return settle_report(engine, state["reached"], self.criterion,
-                             self.vessel.bottom_wall, self.vessel.cross_section)
+        report = settle_report(engine, state["reached"], self.criterion,
+                               self.vessel.bottom_wall, self.vessel.cross_section)
+        report["history"] = state["history"]
+        return report
 
 
 class Hold(Phase):
