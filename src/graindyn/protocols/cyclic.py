@@ -57,7 +57,7 @@ from ..analysis.settlement import fit_residual
 from ..core.walls import Disk, Motion, Plane, Segment
 from ..schema import Float, Int, described as _f
 from .base import Protocol, ProtocolPhase, lower_onto_grains, register, run_until, write_rows
-from .deposition import save_figure
+from .deposition import save_figure, settling_figure
 from .phases import SettleSettings, preparation
 
 PLATE = "plate"
@@ -163,7 +163,8 @@ class Cyclic(Protocol):
 
     def figures(self, rundir, series, results):
         """Settlement and coordination against the cycle number, and the plate stress
-        against time."""
+        against time (cyclic.png); the settling of the bed (settling.png: Karrech et
+        al.'s Fig. 3, deposition.settling_figure)."""
         import matplotlib
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
@@ -180,7 +181,13 @@ class Cyclic(Protocol):
         ax[2].set(xlabel="t [s]", ylabel="plate stress [kPa]")
         fig.suptitle(f"{self.title}: {len(rows)} load cycles, "
                      f"{results['deposition'].get('grains', '?')} grains")
-        return [save_figure(fig, rundir, "cyclic.png")]
+        settled = results["deposition"]
+        settling = settling_figure(
+            series, settled, f"{self.title}: settling of {settled.get('grains', '?')} "
+            f"grains, packing fraction {settled.get('packing_fraction', float('nan')):.3f}",
+            self.vessel.bottom_wall)
+        return [save_figure(fig, rundir, "cyclic.png"),
+                save_figure(settling, rundir, "settling.png")]
 
 
 class Cycles(ProtocolPhase):

@@ -3,6 +3,8 @@ lattice), settle them under gravity until the equilibrium criterion holds, repor
 sample (protocols.prepare.settle_report) and draw it."""
 from typing import Literal
 
+import numpy as np
+
 from .base import Protocol, register
 from .phases import SettleSettings, preparation
 
@@ -35,34 +37,37 @@ class Deposition(Protocol):
         return states["settle"]["report"]
 
     def figures(self, rundir, series, results):
-        """Kinetic energy (from the saved series), and the apparent weight, coordination
-        and packing fraction of the settling history (Karrech et al.'s Fig. 3), against
-        time."""
+        """Kinetic energy, apparent weight, coordination and packing fraction against
+        time (Karrech et al.'s Fig. 3; settling_figure)."""
         fig = settling_figure(series, results, f"{self.title}: packing fraction "
-                              f"{results.get('packing_fraction', float('nan')):.3f}")
+                              f"{results.get('packing_fraction', float('nan')):.3f}",
+                              self.vessel.bottom_wall)
         return [save_figure(fig, rundir, "deposition.png")]
 
 
-def settling_figure(series, report, title):
-    """The figure of a settled sample's ``report`` (phases.Settle): kinetic energy
-    against time from ``series``, and its history (bottom force over the weight,
-    coordination number, packing fraction) against time."""
+def settling_figure(series, report, title, bottom_wall):
+    """The figure of a settled sample's ``report`` (phases.Settle) against time up to
+    its end: kinetic energy, bottom force over the weight and coordination number from
+    ``series`` (``bottom_wall`` names the floor's column), and the packing fraction of
+    the report's history."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     t = series["time [s]"]
+    settling = t <= report.get("time_s", np.inf) * (1 + 1e-12)
     fig, ax = plt.subplots(1, 4, figsize=(18, 4))
-    ax[0].semilogy(t, series["kinetic [J]"] + series["rotational [J]"])
+    ax[0].semilogy(t[settling], (series["kinetic [J]"] + series["rotational [J]"])[settling])
     ax[0].set(xlabel="t [s]", ylabel="kinetic energy [J]")
-    rows = report.get("history", [])
-    times = [r["time_s"] for r in rows]
-    for a, key, label in ((ax[1], "apparent_weight_ratio", "bottom force / weight [-]"),
-                          (ax[2], "coordination", "coordination number [-]"),
-                          (ax[3], "packing_fraction", "packing fraction [-]")):
-        a.plot(times, [r[key] for r in rows])
-        a.set(xlabel="t [s]", ylabel=label)
+    ax[1].plot(t[settling], series[f"force_{bottom_wall} [N]"][settling]
+               / report["total_weight_N"])
     ax[1].axhline(1.0, color="k", lw=0.5)
+    ax[1].set(xlabel="t [s]", ylabel="bottom force / weight [-]", ylim=(0.0, 2.0))
+    ax[2].plot(t[settling], series["coordination [-]"][settling])
+    ax[2].set(xlabel="t [s]", ylabel="coordination number [-]")
+    rows = report.get("history", [])
+    ax[3].plot([r["time_s"] for r in rows], [r["packing_fraction"] for r in rows])
+    ax[3].set(xlabel="t [s]", ylabel="packing fraction [-]")
     fig.suptitle(title)
     fig.tight_layout()
     return fig
