@@ -1,0 +1,507 @@
+"""The convergence study of the sequential settlement procedure (Karrech et al., Sec. 5.2
+and 6, Fig. 11-13): one bed settled once, then from that same settled state the full
+molecular dynamics of ``cycles`` load cycles and the procedure (protocols/cyclic.py,
+``extrapolation``) for several k at fixed k_i and h (the "k" family, Fig. 11a) and for
+several h at fixed k_i and k (the "h" family, Fig. 11b), every run compared with the
+full one at the last cycle N.
+
+Every run is an ordinary run directory of the cyclic protocol, driven by the runner:
+the bed is ``runner.execute`` of the config with one cycle and no periodic checkpoints,
+so that its checkpoint written at the end of the settling (``checkpoint.prev.h5``, the
+last but one) is the settled state; it is kept as ``bed/settled.h5``.  Each study run
+is a run directory holding that checkpoint and a config that differs from the bed's
+only in ``protocol`` (cycles, extrapolation, initial_cycles, computed_cycles,
+extrapolated_cycles), and ``runner.resume`` runs its cycles phase.  A second call with
+the same out folder reuses the bed and every finished run (``study_run.json``); an
+unfinished run starts again from the settled bed, so that its timing is one session's.
+
+Measures, run p against the full molecular dynamics f, at the last cycle N:
+
+- settlement error  |s_p(N) - s_f(N)| / s_f(N), s the plate's descent since the cycles
+  started [m];
+- coordination error  |Z_p(N) - Z_f(N)| / Z_f(N), Z = 2 C / N_free the coordination
+  number of the grain pairs that overlap (|r_i - r_j| < R_i + R_j) in the state at the
+  end of cycle N (geometric, so that it is defined after an extrapolation as after a
+  computed cycle, whose relaxed grains carry no force until the next step);
+- configuration error  E_r = ||u_f - u_p|| / ||u_f|| (Karrech Eq. 22,
+  analysis.settlement.relative_error), u the (N_grains, 3) residual displacements since
+  the cycles started, Frobenius norm;
+- path error: the largest |s_p(c) - s_f(c)| / s_f(c) over the cycles c that run p
+  reports (its computed cycles and the ends of its extrapolations).
+
+Computation time t [s]: the CPU time of the process (``time.process_time``) spent in the
+run of the cycles (``runner.resume``: the cycles, their extrapolations and relaxations,
+the writing of the run's files), the settling, shared by every run, left out.  With
+one numba thread on an otherwise idle core it is the wall time, which is recorded too.
+
+Gained time (Karrech Fig. 12-13, "gained calculation time", which reaches 180 %, so
+that it is relative to the procedure's time):
+
+    G = (t_full - t_procedure) / t_procedure x 100 %,
+
+so G = 100 % when the procedure takes half the time of full DEM; the speed-up
+t_full / t_procedure = 1 + G / 100.
+
+>>> run_settlement_study(pathlib.Path("runs/settlement"), quick=True)  # doctest: +SKIP
+"""
+import copy
+import csv
+import json
+import math
+import pathlib
+import shutil
+import time
+
+import numpy as np
+
+from ..analysis.settlement import relative_error
+
+LAWS = ("linear", "shenton")
+FULL = "full_dem"
+
+# Karrech et al. Table 1 (examples/cyclic.toml): diorite in a steel cylinder, fully
+# confined mode; ``grains`` scales the cylinder's radius to keep the bed's depth.
+TABLE1 = {
+    "run": {"name": "settlement_study", "seed": 1},
+    "grains": {"count": 3900, "material": "diorite",
+               "diameter": {"distribution": "normal", "mean": 6.4e-3, "std": 1.13e-3}},
+    "materials": [
+        {"name": "diorite", "density": 2710.0, "youngs_modulus": 46.9e9,
+         "poisson_ratio": 0.25, "friction_sliding": 0.5, "alpha_n": 0.44, "alpha_t": 0.44},
+        {"name": "steel", "density": 7800.0, "youngs_modulus": 210e9, "poisson_ratio": 0.3,
+         "friction_sliding": 0.5, "alpha_n": 0.44, "alpha_t": 0.44}],
+    "contact": {"normal": "hertz", "damping": "karrech", "tangential": "karrech"},
+    "walls": {"material": "steel",
+              "container": {"kind": "cylinder", "radius": 0.075, "height": 0.1}},
+    "engine": {"integrator": "gear3"},
+    "protocol": {"kind": "cyclic", "insertion": "random", "packing_fraction": 0.05,
+                 "criterion": "energy_ratio", "threshold": 1e-6, "max_time": 2.0,
+                 "stress_amplitude": 14.15e3, "frequency": 50.0},
+    "output": {"series_every": 5e-4},
+}
+
+# The --quick bed: 120 grains of soft sand (E = 1e8 Pa, d ~ 1 mm) in a cylinder of
+# radius 2.7 mm.
+QUICK = {
+    "run": {"name": "settlement_study_quick", "seed": 3},
+    "grains": {"count": 120, "material": "sand",
+               "diameter": {"min": 0.85e-3, "max": 1.15e-3}},
+    "materials": [{"name": "sand", "youngs_modulus": 1e8, "poisson_ratio": 0.25,
+                   "restitution": 0.5, "friction_sliding": 0.4, "tangential_damping": 1.0}],
+    "contact": {"normal": "hertz", "damping": "tsuji", "tangential": "mindlin"},
+    "walls": {"material": "sand",
+              "container": {"kind": "cylinder", "radius": 2.7e-3, "height": 12e-3}},
+    "protocol": {"kind": "cyclic", "packing_fraction": 0.05, "threshold": 1e-5,
+                 "max_time": 0.3, "stress_amplitude": 2e3, "frequency": 50.0},
+    "output": {"series_every": 2e-4},
+}
+
+# Loading modes (Karrech Sec. 6): protocol settings put on top of the base config.
+MODES = {
+    "fully": {},
+    "partially": {"protocol.plate_fraction": 0.8, "protocol.stress_amplitude": 5.87e3,
+                  "protocol.frequency": 10.0},
+}
+
+# The protocol settings a study run sets; the bed is the rest of the config.
+RUN_KEYS = ("cycles", "extrapolation", "initial_cycles", "computed_cycles",
+            "extrapolated_cycles")
+
+
+# ------------------------------------------------------------------ configs
+def set_dotted(data, key, value):
+    """Set ``key`` ("protocol.plate_fraction", "materials.diorite.friction_sliding") in
+    the config dict ``data`` to ``value``; missing sections are created, list items are
+    found by their ``name`` or index.  ValueError when the path goes through a value."""
+    parts = key.split(".")
+    node = data
+    for k, part in enumerate(parts[:-1]):
+        if isinstance(node, list):
+            names = [x.get("name") if isinstance(x, dict) else None for x in node]
+            if part in names:
+                node = node[names.index(part)]
+            elif part.isdigit() and int(part) < len(node):
+                node = node[int(part)]
+            else:
+                raise ValueError(f"{key}: {'.'.join(parts[:k]) or 'the config'} has no "
+                                 f"item {part!r}")
+        elif isinstance(node, dict):
+            node = node.setdefault(part, {})
+        else:
+            raise ValueError(f"{key}: {'.'.join(parts[:k])} is a value, not a section")
+    if not isinstance(node, dict):
+        raise ValueError(f"{key}: {'.'.join(parts[:-1])} is not a section")
+    node[parts[-1]] = value
+    return data
+
+
+def study_config(base, grains=None, overrides=None):
+    """The study's config dict: ``base`` (a config dict, default Table 1) with
+    ``grains`` grains (a cylinder's radius scaled by sqrt(grains / base count), so that
+    the bed keeps its depth) and ``overrides`` ({dotted key: value}, e.g. a loading
+    mode's protocol settings) applied last.  The protocol must be cyclic."""
+    data = copy.deepcopy(base if base is not None else TABLE1)
+    if grains is not None:
+        old = data["grains"]["count"]
+        data["grains"]["count"] = int(grains)
+        box = data.get("walls", {}).get("container", {})
+        if box.get("kind") == "cylinder":
+            box["radius"] = box["radius"] * math.sqrt(grains / old)
+    for key, value in (overrides or {}).items():
+        set_dotted(data, key, value)
+    if data.get("protocol", {}).get("kind") != "cyclic":
+        raise ValueError("the settlement study needs protocol.kind = 'cyclic'")
+    for key in RUN_KEYS:
+        data["protocol"].pop(key, None)
+    return data
+
+
+def plan(cycles, initial_cycles=10, ks=(10, 20, 40), hs=(10, 20, 40), k_fixed=40,
+         h_fixed=10, estimator="shenton"):
+    """The study's runs: {name: protocol settings}, full DEM first, and the families
+    {"k": names (k_i, k in ks, h = h_fixed), "h": names (k_i, k = k_fixed, h in hs)};
+    a run in both families is made once."""
+    if estimator not in LAWS:
+        raise ValueError(f"estimator {estimator!r}: choose one of {', '.join(LAWS)}")
+    runs = {FULL: {"cycles": cycles, "extrapolation": "none"}}
+    families = {"k": [], "h": []}
+    for family, pairs in (("k", [(k, h_fixed) for k in ks]),
+                          ("h", [(k_fixed, h) for h in hs])):
+        for k, h in pairs:
+            name = f"{estimator}_ki{initial_cycles}_k{k}_h{h}"
+            runs.setdefault(name, {"cycles": cycles, "extrapolation": estimator,
+                                   "initial_cycles": initial_cycles, "computed_cycles": k,
+                                   "extrapolated_cycles": h})
+            families[family].append(name)
+    return runs, families
+
+
+# ------------------------------------------------------------------ the bed
+def prepare_bed(data, folder, echo=print):
+    """Settle the bed of config dict ``data`` once (``runner.execute`` with one cycle and
+    no periodic checkpoints) in ``folder``/run; the checkpoint written at the end of the
+    settling is copied to ``folder``/settled.h5.  Reused when ``folder``/bed.json holds
+    the same config; ValueError when it holds another.  Returns the bed run's folder."""
+    from ..config import validate
+    from ..config.build import protocol as build_protocol
+    from ..output import checkpoint
+    from ..runner import execute
+
+    folder = pathlib.Path(folder)
+    settled, record, run = folder / "settled.h5", folder / "bed.json", folder / "run"
+    if record.exists():
+        if json.loads(record.read_text())["config"] != json.loads(json.dumps(data)):
+            raise ValueError(f"{folder} holds a bed of another config: choose another "
+                             "--out or remove it")
+        if settled.exists():
+            echo(f"bed: reusing {settled}")
+            return run
+    if run.exists():
+        shutil.rmtree(run)
+    folder.mkdir(parents=True, exist_ok=True)
+    record.write_text(json.dumps({"config": data}, indent=1))
+    bed = copy.deepcopy(data)
+    bed["protocol"].update(cycles=1, extrapolation="none")
+    bed.setdefault("output", {}).update(checkpoint_every_steps=None,
+                                        checkpoint_every_seconds=None, figures=False)
+    config = validate(bed, "settlement study bed")
+    settle_end = len(build_protocol(config).phases) - 1
+    wall = time.perf_counter()
+    results = execute(config, run, show_progress=False, echo=echo)
+    _, meta, step, t = checkpoint.read(run / "checkpoints" / checkpoint.PREVIOUS)
+    if meta["protocol"]["phase"] != settle_end or "cycles" in meta["protocol"]["states"]:
+        raise RuntimeError(f"{run}: the previous checkpoint is not the end of the settling")
+    shutil.copy(run / "checkpoints" / checkpoint.PREVIOUS, settled)
+    report = dict(results.get("deposition", {}), settle_time_s=t, settle_steps=step,
+                  dt_s=results.get("dt_s"), wall_s=time.perf_counter() - wall)
+    record.write_text(json.dumps({"config": data, "report": report}, indent=1))
+    echo(f"bed settled: {report.get('grains', '?')} grains, t = {t:.4g} s ({step} steps)")
+    return run
+
+
+# ------------------------------------------------------------------ one run
+def run_from_bed(bed, settings, folder, echo=print, threads=None):
+    """The cycles of one study run in the run directory ``folder``: the bed's resolved
+    config with the protocol ``settings`` (and no figures), its meta data, time series
+    and settled checkpoint copied there, then ``runner.resume``.  Returns the record of
+    the run (study_run.json): results, path, final state measures and times."""
+    from ..config import dumps, validate
+    from ..config.load import read_toml
+    from ..runner import resume
+
+    bed, folder = pathlib.Path(bed), pathlib.Path(folder)
+    done = folder / "study_run.json"
+    if done.exists():
+        record = json.loads(done.read_text())
+        if record["settings"] == settings:
+            echo(f"{folder.name}: reusing the finished run")
+            return record
+    if folder.exists():
+        shutil.rmtree(folder)
+    data = read_toml(bed / "run" / "config.toml")
+    data["protocol"].update(settings)
+    data["output"]["figures"] = False
+    data["protocol"]["residuals"] = True
+    config = validate(data, f"settlement study run {folder.name}")
+    (folder / "checkpoints").mkdir(parents=True)
+    (folder / "config.toml").write_text(dumps(config))
+    shutil.copy(bed / "run" / "meta.json", folder / "meta.json")
+    shutil.copy(bed / "run" / "series.csv", folder / "series.csv")
+    shutil.copy(bed / "settled.h5", folder / "checkpoints" / "checkpoint.h5")
+    if (bed / "run" / "vtk").exists():
+        shutil.copytree(bed / "run" / "vtk", folder / "vtk")
+    echo(f"{folder.name}: {settings}")
+    cpu, wall = time.process_time(), time.perf_counter()
+    results = resume(folder, show_progress=False, echo=lambda *a: None, threads=threads)
+    cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
+    record = {"settings": settings, "cpu_s": cpu, "wall_s": wall,
+              "steps": results.get("steps_this_session"), **final_state(folder, results)}
+    done.write_text(json.dumps(record, indent=1, default=float))
+    echo(f"{folder.name}: {cpu:.1f} s CPU, settlement {1e3 * record['settlement_m']:.4g} mm"
+         f" at cycle {record['cycle']}, coordination {record['coordination']:.3f}")
+    return record
+
+
+def settlement_path(results):
+    """[(cycle, settlement [m], source)] of a cyclic run's results, by cycle: its
+    computed cycles ("computed") and the ends of its extrapolations ("extrapolated")."""
+    path = [(r["cycle"], r["settlement_m"], "computed") for r in results["cycles"]]
+    path += [(j["to_cycle"], j["settlement_m"], "extrapolated")
+             for j in results.get("extrapolations", [])]
+    return sorted(path)
+
+
+def contact_coordination(positions, radii, free=None):
+    """Z = 2 C / N_free [-], C the grain pairs with |r_i - r_j| < R_i + R_j (positions
+    (N, 3) [m], radii (N,) [m]), N_free the free grains (``free`` (N,) bool, default
+    all)."""
+    from scipy.spatial import cKDTree
+
+    pairs = cKDTree(positions).query_pairs(2.0 * float(np.max(radii)), output_type="ndarray")
+    i, j = pairs[:, 0], pairs[:, 1]
+    touching = np.linalg.norm(positions[i] - positions[j], axis=1) < radii[i] + radii[j]
+    n = len(radii) if free is None else int(np.sum(free))
+    return float(2.0 * np.count_nonzero(touching) / max(1, n))
+
+
+def final_state(folder, results):
+    """Measures of a finished study run at its last cycle N: cycle, settlement [m],
+    coordination (contact_coordination of the final checkpoint), the residual file of
+    cycle N, the path, the numbers of computed and extrapolated cycles and the
+    relaxations' iterations and largest overlap over the radius after them."""
+    from ..output import checkpoint
+
+    arrays, _, _, _ = checkpoint.latest(pathlib.Path(folder) / "checkpoints")
+    path = settlement_path(results)
+    cycle, settlement, source = path[-1]
+    jumps = results.get("extrapolations", [])
+    fixed = arrays.get("grains/fixed")
+    return {"cycle": cycle, "settlement_m": settlement, "last_cycle": source,
+            "coordination": contact_coordination(
+                arrays["grains/positions"], arrays["grains/radii"],
+                None if fixed is None else np.asarray(fixed) == 0),
+            "residual_file": f"residuals/cycle_{cycle:06d}.npy",
+            "path": [list(p) for p in path],
+            "coordination_path": [[r["cycle"], r["coordination"]] for r in results["cycles"]],
+            "computed_cycles": len(results["cycles"]),
+            "extrapolated_cycles": sum(j["to_cycle"] - j["from_cycle"] for j in jumps),
+            "relaxation_iterations": sum(j["relaxation_iterations"] for j in jumps),
+            "largest_overlap_after": max((j["largest_overlap_after"] for j in jumps),
+                                         default=None),
+            "relaxed": all(j["relaxed"] for j in jumps)}
+
+
+# ------------------------------------------------------------------ comparison
+def compare(run, full, run_dir, full_dir):
+    """The errors of ``run`` against ``full`` (study_run.json records, their run
+    directories) at the last cycle, and the gained time (module docstring)."""
+    u_full = np.load(pathlib.Path(full_dir) / full["residual_file"])
+    u_run = np.load(pathlib.Path(run_dir) / run["residual_file"])
+    reference = {c: s for c, s, _ in full["path"]}
+    path_error = max(abs(s - reference[c]) / abs(reference[c]) for c, s, _ in run["path"]
+                     if c in reference and reference[c] != 0)
+    gained = (full["cpu_s"] - run["cpu_s"]) / run["cpu_s"]
+    return {"settlement_error": abs(run["settlement_m"] - full["settlement_m"])
+            / abs(full["settlement_m"]),
+            "coordination_error": abs(run["coordination"] - full["coordination"])
+            / full["coordination"],
+            "configuration_error": relative_error(u_full, u_run),
+            "path_error": path_error,
+            "gained_time_percent": 100.0 * gained,
+            "speedup": full["cpu_s"] / run["cpu_s"],
+            "cycles_per_hour": 3600.0 * run["cycle"] / run["cpu_s"]}
+
+
+# ------------------------------------------------------------------ the study
+def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=None,
+                         initial_cycles=None, ks=None, hs=None, k_fixed=None, h_fixed=None,
+                         estimator="shenton", mode="fully", overrides=None, threads=None,
+                         jobs=1, echo=print):
+    """Settle one bed, run full DEM and the procedure's k and h families from it (module
+    docstring) into ``out``; write summary.csv, paths.csv, summary.json and the figures
+    settlement_paths.png (Fig. 11) and settlement_errors.png (Fig. 12-13).
+
+    base: config dict (default Table 1, or the soft 120-grain bed QUICK with ``quick``);
+    grains: grain count (default 430, in a cylinder of radius 24.9 mm; quick: 120);
+    cycles: N (default 100; quick 8); initial_cycles k_i (10; quick 2); ks, hs: the
+    families' k and h (10, 20, 40; quick 2, 3) at h = h_fixed (10; quick 2) and
+    k = k_fixed (40; quick 3); estimator linear or shenton; mode: a MODES entry whose
+    protocol settings go on the base; overrides: {dotted key: value} applied last;
+    threads: numba threads of each run (default the bed's); jobs: runs at a time, each
+    in its own process (their CPU times are then measured side by side, on a machine
+    with at least ``jobs`` free cores).  Returns the summary dict."""
+    out = pathlib.Path(out)
+    q = quick
+    cycles = cycles or (8 if q else 100)
+    initial_cycles = initial_cycles or (2 if q else 10)
+    ks = tuple(ks or ((2, 3) if q else (10, 20, 40)))
+    hs = tuple(hs or ((2, 3) if q else (10, 20, 40)))
+    k_fixed, h_fixed = k_fixed or (3 if q else 40), h_fixed or (2 if q else 10)
+    if mode not in MODES:
+        raise ValueError(f"mode {mode!r}: choose one of {', '.join(MODES)}")
+    if base is None:
+        base = QUICK if q else TABLE1
+        if grains is None and not q:
+            grains = 430
+    data = study_config(base, grains, {**MODES[mode], **(overrides or {})})
+    runs, families = plan(cycles, initial_cycles, ks, hs, k_fixed, h_fixed, estimator)
+    out.mkdir(parents=True, exist_ok=True)
+    bed = out / "bed"
+    prepare_bed(data, bed, echo=echo)
+    if jobs > 1:
+        import concurrent.futures
+        import multiprocessing
+
+        with concurrent.futures.ProcessPoolExecutor(
+                jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+            futures = {name: pool.submit(run_from_bed, bed, settings, out / "runs" / name,
+                                         threads=threads)
+                       for name, settings in runs.items()}
+            records = {name: f.result() for name, f in futures.items()}
+    else:
+        records = {name: run_from_bed(bed, settings, out / "runs" / name, echo=echo,
+                                      threads=threads)
+                   for name, settings in runs.items()}
+    full = records[FULL]
+    rows = []
+    for name, record in records.items():
+        errors = compare(record, full, out / "runs" / name, out / "runs" / FULL)
+        s = runs[name]
+        rows.append({"run": name, "families": "+".join(f for f in families
+                                                        if name in families[f]) or "reference",
+                     "estimator": s["extrapolation"],
+                     "initial_cycles": s.get("initial_cycles", ""),
+                     "computed_cycles_k": s.get("computed_cycles", ""),
+                     "extrapolated_cycles_h": s.get("extrapolated_cycles", ""),
+                     "cycles": record["cycle"], "cycles_computed": record["computed_cycles"],
+                     "cycles_extrapolated": record["extrapolated_cycles"],
+                     "settlement_m": record["settlement_m"],
+                     "coordination": record["coordination"],
+                     "cpu_s": record["cpu_s"], "wall_s": record["wall_s"], **errors,
+                     "relaxation_iterations": record["relaxation_iterations"],
+                     "largest_overlap_after": record["largest_overlap_after"]})
+    summary = {
+        "quick": quick, "mode": mode, "estimator": estimator,
+        "overrides": {**MODES[mode], **(overrides or {})},
+        "grains": data["grains"]["count"], "cycles": cycles, "jobs": jobs,
+        "bed": json.loads((bed / "bed.json").read_text()).get("report", {}),
+        "families": families, "runs": {r["run"]: r for r in rows},
+        "paths": {name: r["path"] for name, r in records.items()},
+        "coordination_paths": {name: r["coordination_path"] for name, r in records.items()},
+        "definitions": {
+            "settlement_error": "|s_p(N) - s_full(N)| / s_full(N)",
+            "coordination_error": "|Z_p(N) - Z_full(N)| / Z_full(N), Z = 2 C / N of the "
+                                  "overlapping grain pairs at cycle N",
+            "configuration_error": "E_r = ||u_full - u_p|| / ||u_full|| (Karrech Eq. 22), "
+                                   "residual displacements at cycle N",
+            "path_error": "max over the run's cycles c of |s_p(c) - s_full(c)| / s_full(c)",
+            "gained_time_percent": "(t_full - t_p) / t_p x 100, t the CPU time [s] of the "
+                                   "cycles (settling excluded)",
+            "speedup": "t_full / t_p"}}
+    _write_tables(out, rows, records)
+    (out / "summary.json").write_text(json.dumps(summary, indent=1, default=float))
+    figures(out, summary)
+    return summary
+
+
+def _write_tables(out, rows, records):
+    """summary.csv (one row per run) and paths.csv (run, cycle, settlement, source)."""
+    with open(out / "summary.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    with open(out / "paths.csv", "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["run", "cycle", "settlement_m", "source"])
+        for name, record in records.items():
+            writer.writerows([name, *p] for p in record["path"])
+
+
+def figures(out, summary):
+    """settlement_paths.png: settlement [mm] against the cycle for the k family and the
+    h family with full DEM (Karrech Fig. 11); settlement_errors.png: coordination against
+    the cycle and the errors in coordination, configuration (E_r) and settlement
+    against the gained time (Fig. 12, and Fig. 13 for the partially confined mode).
+    Returns their paths."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = pathlib.Path(out)
+    paths, runs, families = summary["paths"], summary["runs"], summary["families"]
+    title = (f"{summary['grains']} grains, {summary['mode']} confined, "
+             f"{summary['estimator']}, N = {summary['cycles']}")
+
+    def label(name):
+        r = runs[name]
+        return (f"k_i={r['initial_cycles']}, k={r['computed_cycles_k']}, "
+                f"h={r['extrapolated_cycles_h']}")
+
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), sharey=True)
+    for ax, family, tag in zip(axes, ("k", "h"), ("(a) varying k", "(b) varying h")):
+        c, s, _ = zip(*paths[FULL])
+        ax.plot(c, 1e3 * np.array(s), "k-", lw=2, label="full DEM")
+        for name in families[family]:
+            c, s, src = zip(*paths[name])
+            line, = ax.plot(c, 1e3 * np.array(s), "-", lw=1, label=label(name))
+            jumps = [k for k, x in enumerate(src) if x == "extrapolated"]
+            ax.plot(np.array(c)[jumps], 1e3 * np.array(s)[jumps], "o", color=line.get_color(),
+                    mfc="none")
+        ax.set(xlabel="cycle", title=tag)
+        ax.legend(fontsize=8)
+    axes[0].set_ylabel("settlement [mm]")
+    fig.suptitle(f"Settlement paths (open marks: extrapolated), {title}")
+    fig.tight_layout()
+    first = out / "settlement_paths.png"
+    fig.savefig(first, dpi=110)
+    plt.close(fig)
+
+    fig, axes = plt.subplots(1, 4, figsize=(18, 4.2))
+    c, z = zip(*summary["coordination_paths"][FULL])
+    axes[0].plot(c, z, "k-", lw=2, label="full DEM")
+    for name in runs:
+        if name != FULL and summary["coordination_paths"][name]:
+            c, z = zip(*summary["coordination_paths"][name])
+            axes[0].plot(c, z, ".", ms=3, label=label(name))
+    axes[0].set(xlabel="cycle", ylabel="coordination number [-] (computed cycles)")
+    axes[0].legend(fontsize=7)
+    procedure = [r for name, r in runs.items() if name != FULL]
+    gained = [r["gained_time_percent"] for r in procedure]
+    for ax, key, what in zip(axes[1:], ("coordination_error", "configuration_error",
+                                        "settlement_error"),
+                             ("coordination number", "configuration E_r (Eq. 22)",
+                              "settlement")):
+        for r, g in zip(procedure, gained):
+            ax.plot(g, 100.0 * r[key], "o")
+            ax.annotate(f"k={r['computed_cycles_k']},h={r['extrapolated_cycles_h']}",
+                        (g, 100.0 * r[key]), fontsize=7)
+        ax.plot([0], [0], "k+")
+        ax.set(xlabel="gained time (t_full - t_p) / t_p [%]",
+               ylabel=f"relative error in {what} [%]")
+    fig.suptitle(f"Procedure against full DEM at cycle {summary['cycles']}, {title}")
+    fig.tight_layout()
+    second = out / "settlement_errors.png"
+    fig.savefig(second, dpi=110)
+    plt.close(fig)
+    return [first, second]
