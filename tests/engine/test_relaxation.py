@@ -116,6 +116,7 @@ def test_functional_gradient_against_finite_differences(one_thread, quarter):
     lists = candidate_lists(state.positions, radii, 10e-3, walls, planes)
     assert (lists.image_codes.size > 20) == quarter
     loads = rng.normal(0, 0.1, (n, 3))
+    anchor = rng.uniform(0.0, 1e3, n)            # [N/m], the springs to the reference
     free = np.ones(n, np.int8)
     gravity = np.array([0.0, 0.0, -G])
     reference = state.positions + rng.normal(0, 1e-4, (n, 3))
@@ -123,7 +124,8 @@ def test_functional_gradient_against_finite_differences(one_thread, quarter):
     def energy(at):
         gradient = np.zeros((n, 3))
         value = functional(at, reference, radii, state.masses, state.materials.astype(np.int64),
-                           youngs, gravity, loads, free, lists.start, lists.partners,
+                           youngs, gravity, loads, anchor, free, lists.start,
+                           lists.partners,
                            walls.periodic_flag, walls.periodic_length, lists.wall_start,
                            lists.wall_ids, walls.kind, walls.geometry, walls.offset,
                            walls.material.astype(np.int64), lists.image_start,
@@ -155,3 +157,30 @@ def test_lists_are_rebuilt_when_grains_move_far(one_thread):
     assert result.rebuilds > 1 and result.converged
     assert result.overlaps_after.max < 1e-4
     assert result.residual_over_weight < 1e-3
+
+
+def test_relaxation_without_gravity_only_removes_the_overlaps(one_thread):
+    """Simulation.relax(gravity=False, anchor=1): a grain pushed 0.2 R into a fixed
+    grain resting on the floor comes out of it until the contact force equals the
+    anchor's spring, one weight per mean radius of displacement (a small overlap),
+    where the Eq. 29 relaxation with gravity stops at the Hertz overlap that carries
+    its weight; the fixed grain stays."""
+    r = 3e-3
+    walls = [Plane((0, 0, 0), (0, 0, 1), material=1)]
+    sims = []
+    for _ in range(2):
+        state = gd.State.create([[0.0, 0.0, r], [0.0, 0.0, 2.8 * r]], [r, r], 2710.0)
+        state.fixed[0] = 1
+        sims.append(gd.Simulation(state, [DIORITE, STEEL], walls=walls))
+    loose = sims[0].relax(gravity=False, anchor=1.0, force_tolerance=1e-8)
+    loaded = sims[1].relax(force_tolerance=1e-8)
+    youngs_eff = 1.0 / (2 * (1 - 0.25**2) / 46.9e9)
+    weight = sims[1].state.masses[1] * G
+    overlap = [2 * r - (s.state.positions[1, 2] - s.state.positions[0, 2]) for s in sims]
+    assert loose.converged and loaded.converged
+    moved = sims[0].state.positions[1, 2] - 2.8 * r
+    hertz = 4.0 / 3.0 * youngs_eff * np.sqrt(r / 2) * overlap[0] ** 1.5
+    assert 0.0 < overlap[0] < 1e-3 * r
+    assert hertz == pytest.approx(weight / r * moved, rel=1e-5)       # spring = contact
+    assert overlap[1] == pytest.approx(_hertz_overlap(weight, youngs_eff, r / 2), rel=1e-4)
+    assert sims[0].state.positions[0, 2] == r and sims[1].state.positions[0, 2] == r

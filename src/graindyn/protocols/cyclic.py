@@ -98,6 +98,17 @@ class CyclicSettings(SettleSettings):
         "the axis (partially confined): a disk of diameter fraction x the cylinder's "
         "diameter, or a rectangle of fraction x each side of a box (a segment of fraction "
         "x the width in 2D)", gt=0, le=1)
+    relaxation: Literal["gravity", "overlaps"] = _f(
+        "gravity", "the functional each extrapolation is relaxed by: gravity (Karrech "
+        "Eq. 29: the Hertz potentials and gravity, the plate a wall where it was put) or "
+        "overlaps (the Hertz potentials and springs of one grain weight per mean radius "
+        "holding each grain where the extrapolation put it: the excessive overlaps "
+        "are removed moving the grains as little as possible, gravity and the load "
+        "coming back with the computed cycles)")
+    relaxation_iterations: Int = _f(10000, "most L-BFGS iterations of a relaxation [-]; "
+                                    ">= 1", ge=1)
+    relaxation_tolerance: Float = _f(1e-5, "largest residual force component a relaxation "
+                                     "leaves, in mean grain weights [-]; > 0", gt=0)
     hold_frontier: bool = _f(False, "hold the grains touching the container's walls where "
                              "the extrapolation put them while the others relax (Karrech "
                              "Sec. 4); false: every grain relaxes, the walls confining them")
@@ -243,9 +254,10 @@ class Cycles(ProtocolPhase):
         cycles, Shenton's law as the paper fits it, without an intercept: with one, a
         window of a few cycles fits its noise and can extrapolate backwards), the
         grains and the plate moved to where it puts them h cycles on, the grains then
-        relaxed from rest (Eq. 29, engine.relax: Hertz potentials, gravity, the walls and
-        the plate where they are; with hold_frontier the grains touching the container's
-        walls held, as Karrech et al. do), and a new round starting from there."""
+        relaxed from rest (Eq. 29, engine.relax: Hertz potentials, gravity unless
+        relaxation = "overlaps", the walls and the plate where they are; with
+        hold_frontier the grains touching the container's walls held, as Karrech et al.
+        do), and a new round starting from there."""
         p = self.p
         if not hasattr(engine, "relax"):
             raise ValueError("the cyclic procedure needs an engine that can relax its "
@@ -268,7 +280,10 @@ class Cycles(ProtocolPhase):
         engine.relocate(free, moved["grains"][free], np.zeros((free.size, 3)))
         engine.place_wall(k, moved["plate"][0])
         result = engine.relax(fixed=held | self._frontier(engine, k) if p.hold_frontier
-                              else held)
+                              else held, force_tolerance=p.relaxation_tolerance,
+                              gravity=p.relaxation == "gravity",
+                              anchor=0.0 if p.relaxation == "gravity" else 1.0,
+                              max_iterations=p.relaxation_iterations)
         state["cycle"] += ahead
         jump = {"from_cycle": state["cycle"] - ahead, "to_cycle": state["cycle"],
                 "estimator": law, "settlement_m": state["plate_0"] - self._plate(engine, k),

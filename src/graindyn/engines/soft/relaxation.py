@@ -112,14 +112,16 @@ class Relaxation(NamedTuple):
 
 
 @kernel
-def functional(positions, reference, radii, masses, materials, youngs, gravity, loads, free,
+def functional(positions, reference, radii, masses, materials, youngs, gravity, loads, anchor,
+               free,
                start, partners, periodic_flag, periodic_length,
                wall_start, wall_ids, wall_kind, wall_geometry, wall_offset, wall_material,
                image_start, image_codes, mirror_at, gradient):
     """Eq. 29 [J] at ``positions`` (N, 3) [m], displacements from ``reference``; writes
     its gradient (N, 3) [N] (minus the net force on each grain; 0 on grains with
     free[b] == 0).  youngs[a, b]: E* [Pa] of materials a, b; gravity (3,) [m/s^2];
-    loads (N, 3) [N]; start, partners: the pair list (CSR, i < j); wall_start,
+    loads (N, 3) [N]; anchor (N,) [N/m]: springs k_b |u_b|^2 / 2 holding each grain to
+    its reference place (0: none); start, partners: the pair list (CSR, i < j); wall_start,
     wall_ids: the grain-wall candidates; the wall arrays as in core/walls.py;
     image_start, image_codes, mirror_at: the image candidates of the symmetry planes
     (core/symmetry.py), half the potential of each, its whole force on its grain."""
@@ -128,8 +130,8 @@ def functional(positions, reference, radii, masses, materials, youngs, gravity, 
     for b in range(n):
         for d in range(3):
             u = positions[b, d] - reference[b, d]
-            energy -= (masses[b] * gravity[d] + loads[b, d]) * u
-            gradient[b, d] = -(masses[b] * gravity[d] + loads[b, d])
+            energy += 0.5 * anchor[b] * u * u - (masses[b] * gravity[d] + loads[b, d]) * u
+            gradient[b, d] = anchor[b] * u - (masses[b] * gravity[d] + loads[b, d])
     for i in range(n):
         for k in range(start[i], start[i + 1]):
             j = partners[k]
@@ -303,7 +305,7 @@ def youngs_table(materials):
 
 def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), loads=None,
           skin=None, force_tolerance=1e-5, max_iterations=10000, update=False,
-          symmetry=()):
+          symmetry=(), anchor=0.0):
     """Minimise the functional of Eq. 29 over the positions of the free grains.
 
     state : core.State (positions, radii, masses, materials);  materials : the list of
@@ -314,7 +316,12 @@ def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), l
     radius);  force_tolerance : the largest residual force component, in mean grain
     weights (module docstring);  max_iterations of L-BFGS;  update : write the relaxed
     positions into the state (velocities are left as they are) when True;  symmetry :
-    core.symmetry.SymmetryPlanes or a list of Symmetry planes (module docstring).
+    core.symmetry.SymmetryPlanes or a list of Symmetry planes (module docstring);
+    anchor : the stiffness of a spring holding each grain to where it starts, in its
+    weight m_b 9.81 m/s^2 per mean radius [-] (0: none): with gravity off, the
+    relaxation then removes the overlaps moving the grains as little as it can (the
+    functional without gravity is flat wherever no grains overlap, and a first
+    quasi-Newton step could throw a grain a radius away).
     Returns a Relaxation.  Only the positions move: 2D states keep z = 0.  From a
     soft-engine run: ``relax(sim.state, materials, walls=sim.walls)``.
     """
@@ -338,6 +345,9 @@ def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), l
         raise ValueError(f"fixed must be ({n},) booleans, got {fixed.shape}")
     free = (~fixed).astype(np.int8)
     g = np.asarray(gravity, dtype=np.float64).reshape(3)
+    if not anchor >= 0:
+        raise ValueError(f"anchor must be >= 0 [weights per mean radius], got {anchor}")
+    springs = anchor * masses * STANDARD_GRAVITY / float(radii.mean())
     loads = np.zeros((n, 3)) if loads is None else \
         np.ascontiguousarray(np.broadcast_to(np.asarray(loads, np.float64), (n, 3)))
     skin = 0.2 * float(radii.mean()) if skin is None else float(skin)
@@ -363,7 +373,7 @@ def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), l
             built["count"] += 1
         lists = built["lists"]
         return functional(at, reference, radii, masses, grain_materials, youngs, g, loads,
-                          free, lists.start, lists.partners, walls.periodic_flag,
+                          springs, free, lists.start, lists.partners, walls.periodic_flag,
                           walls.periodic_length, lists.wall_start, lists.wall_ids,
                           walls.kind, walls.geometry, walls.offset, wall_material,
                           lists.image_start, lists.image_codes, symmetry.at, gradient)

@@ -738,18 +738,24 @@ class Simulation:
             wall, force=force, stress=stress, gain=gain, time_constant=time_constant,
             stiffness=stiffness, max_speed=max_speed, direction=direction))
 
-    def relax(self, fixed=None, force_tolerance=1e-5):
+    def relax(self, fixed=None, force_tolerance=1e-5, gravity=True, max_iterations=10000,
+              anchor=0.0):
         """Move the grains to the minimum of Karrech et al.'s Eq. 29 (Hertz contact
         potentials, gravity, the walls where they are, the images of the symmetry
         planes; relaxation.relax), from rest:
         the free grains are relocated there with zero velocities, without their contact
         history (relocate).  fixed : (N,) bool grains held where they are (None: the
-        fixed grains).  Returns the relaxation.Relaxation report."""
+        fixed grains); gravity : False leaves gravity out of the functional; anchor :
+        springs holding each grain to where it starts, in weights per mean radius
+        (relaxation.relax), which with gravity off make the relaxation remove the
+        overlaps moving the grains as little as it can; max_iterations of L-BFGS.
+        Returns the relaxation.Relaxation report."""
         from .relaxation import relax
 
         result = relax(self.state, self.materials, walls=self.walls, fixed=fixed,
-                       gravity=self.gravity, force_tolerance=force_tolerance,
-                       symmetry=self.symmetry)
+                       gravity=self.gravity if gravity else np.zeros(3),
+                       force_tolerance=force_tolerance, max_iterations=max_iterations,
+                       symmetry=self.symmetry, anchor=anchor)
         held = self.state.fixed != 0 if fixed is None else np.asarray(fixed, bool)
         free = np.flatnonzero(~held)
         self.relocate(free, result.positions[free], np.zeros((free.size, 3)))
