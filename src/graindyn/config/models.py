@@ -197,8 +197,8 @@ class SymmetrySection(Section):
     axis: Literal["x", "y", "z"] = _f(..., "the axis normal to the plane")
     at: Float | None = _f(None, "coordinate of the plane along its axis [m]; default: the "
                           "container's centre (its axis for a cylinder)")
-    side: Literal[1, -1] = _f(1, "the side of the plane the grains are on: 1 above "
-                              "``at``, -1 below")
+    side: Int = _f(1, "the side of the plane the grains are on: 1 above ``at``, -1 "
+                   "below", ge=-1, le=1)
 
 
 class SegmentSection(Section):

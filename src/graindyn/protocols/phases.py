@@ -117,9 +117,10 @@ class Settle(Phase):
         top = float(np.max(s.positions[:, up] + s.radii))
         weight = float(np.sum(s.masses[s.fixed == 0]) * np.linalg.norm(engine.gravity))
         walls = engine.walls
+        floor = v.bottom_wall is not None and weight > 0    # a silo has no floor wall
         return {"time_s": engine.time,
                 "apparent_weight_ratio": walls.normal_force(walls.index(v.bottom_wall))
-                / weight if weight > 0 else math.nan,
+                / weight if floor else math.nan,
                 "coordination": coordination_number(engine),
                 "packing_fraction": packing_fraction(s, v.cross_section, v.floor, top)
                 if top > v.floor else math.nan}
