@@ -17,3 +17,17 @@ def one_thread():
     numba.set_num_threads(1)
     yield
     numba.set_num_threads(before)
+
+
+def pytest_collection_modifyitems(config, items):
+    """Test modules with a ``start_early()`` (slow jobs in subprocesses: the CUDA
+    simulator's) have it called once collection is done, and their tests run last: the
+    jobs run at low priority beside the single-threaded suite, on the core it leaves
+    idle, and are done or nearly when their tests ask for them."""
+    early = [item for item in items if hasattr(getattr(item, "module", None), "start_early")]
+    if not early:
+        return
+    for module in {item.module for item in early}:
+        module.start_early()
+    chosen = set(map(id, early))
+    items[:] = [item for item in items if id(item) not in chosen] + early

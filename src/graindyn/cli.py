@@ -80,6 +80,7 @@ def run(
 def validate(config: Annotated[pathlib.Path, typer.Argument(help="TOML config to check.")]):
     """Check a config without simulating: exit 0 when it can run, 2 otherwise."""
     from .config import ConfigError, load
+    from .engines import ENGINES
     from .runner import check
 
     try:
@@ -88,6 +89,9 @@ def validate(config: Annotated[pathlib.Path, typer.Argument(help="TOML config to
     except ConfigError as err:
         _fail(err)
     c = cfg.contact
+    laws = (f"contact: {c.normal} + {c.damping} + {c.tangential} + rolling {c.rolling} + "
+            f"twisting {c.twisting}") if ENGINES[cfg.engine.kind].contact_laws else \
+        "contact: the materials' restitution and friction (rigid grains, no [contact] laws)"
     if report["critical_time_s"] is None:
         stepping = f"engine {cfg.engine.kind}: {report['criterion']}"
     else:
@@ -96,8 +100,7 @@ def validate(config: Annotated[pathlib.Path, typer.Argument(help="TOML config to
                     f"{report['suggested_dt_s']:.4g} s"
                     + (f", dt {dt:.4g} s = {report['fraction']:.3f} of it" if dt else ""))
     typer.echo(f"{config}: ok\n  {cfg.grains.count} grains in {cfg.run.dim}D, protocol "
-               f"{cfg.protocol.kind}\n  contact: {c.normal} + {c.damping} + {c.tangential} "
-               f"+ rolling {c.rolling} + twisting {c.twisting}\n  {stepping}")
+               f"{cfg.protocol.kind}\n  {laws}\n  {stepping}")
 
 
 @app.command()

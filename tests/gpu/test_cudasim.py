@@ -1,16 +1,19 @@
-"""GPU kernels under the CUDA simulator (issue 6): the device step, built from the CPU's
+"""GPU kernels under the CUDA simulator: the device step, built from the CPU's
 own per-grain functions, follows the CPU step through contacts, device rebuilds of the
 neighbour lists, a moving wall, every integrator stage, the checks and a checkpoint
 moved from one backend to the other.  Needs numba-cuda (the test extra has it); no GPU
 is used.  The simulator is slow and single-threaded: every job of this module starts
-at once, in its own process, when the first test asks for one, so that they share the
-machine's cores; each test then waits for its own."""
+at once, in its own process (start_early), so that they share the machine's cores;
+each test then waits for its own."""
+import atexit
 import importlib.util
 import json
 import os
 import pathlib
+import shutil
 import subprocess
 import sys
+import tempfile
 
 import pytest
 
@@ -48,25 +51,55 @@ def _jobs(folder):
     return jobs
 
 
-@pytest.fixture(scope="module")
-def simulated(tmp_path_factory):
-    """The started jobs; ``simulated(name)`` waits for one and returns its stdout."""
-    folder = tmp_path_factory.mktemp("cudasim")
+_STARTED = {}
+
+
+def start_early():
+    """Start every simulator job, each in its own process at the lowest priority, its
+    output into files (tests/conftest.py calls this once collection is done and runs
+    this module's tests last: the jobs then use the core the single-threaded suite
+    leaves idle).  Nothing without numba-cuda."""
+    if _STARTED or importlib.util.find_spec("numba_cuda") is None:
+        return
+    folder = pathlib.Path(tempfile.mkdtemp(prefix="cudasim-"))
     env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")
-    procs = {name: subprocess.Popen([sys.executable, *args], env=env, text=True,
-                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-             for name, args in _jobs(folder).items()}
+    procs = {}
+    for name, args in _jobs(folder).items():
+        with open(folder / f"{name}.out", "w") as out, open(folder / f"{name}.err", "w") as err:
+            procs[name] = subprocess.Popen([sys.executable, *args], env=env, text=True,
+                                           stdout=out, stderr=err,
+                                           preexec_fn=lambda: os.nice(19))
+    _STARTED.update(folder=folder, procs=procs)
+    atexit.register(_stop)
+
+
+def _stop():
+    """Kill the jobs still running and remove their folder (at the module's end, or at
+    exit when a run stops before it)."""
+    for proc in _STARTED.get("procs", {}).values():
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    if "folder" in _STARTED:
+        shutil.rmtree(_STARTED["folder"], ignore_errors=True)
+
+
+@pytest.fixture(scope="module")
+def simulated():
+    """The started jobs; ``simulated(name)`` waits for one and returns its stdout."""
+    start_early()
+    folder, procs = _STARTED["folder"], _STARTED["procs"]
 
     def wait(name):
-        out, err = procs[name].communicate(timeout=1200)
+        procs[name].wait(timeout=1200)
+        out = (folder / f"{name}.out").read_text()
+        err = (folder / f"{name}.err").read_text()
         assert procs[name].returncode == 0, out[-2000:] + err[-3000:]
         return out
 
     wait.folder = folder
     yield wait
-    for proc in procs.values():
-        if proc.poll() is None:
-            proc.kill()
+    _stop()
 
 
 @pytest.mark.parametrize("model, integrator", PARITY)

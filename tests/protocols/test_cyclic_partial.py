@@ -133,7 +133,8 @@ def partial(tmp_path_factory):
 def test_the_partial_plate_carries_the_haversine_on_its_own_area(partial):
     """The plate is a disk of radius f R (area pi (f R)^2); its force over that area
     peaks at Delta sigma plus the plate's weight over it (5 %) at mid-cycle, once it is
-    seated (the first cycle punches it into the loose bed, with an overshoot); the
+    seated (the first cycles punch it into the loose bed, with an overshoot: 60 % at the
+    first, 0-16 % at the second from one CPU to another, the bed being chaotic); the
     recorded sigma_plate is the plate's vertical force over the same area."""
     out, results = partial
     area = math.pi * (FRACTION * RADIUS) ** 2
@@ -147,7 +148,7 @@ def test_the_partial_plate_carries_the_haversine_on_its_own_area(partial):
     t = series["time [s]"]
     stress = series["force_plate [N]"] / area
     weight = results["deposition"]["total_weight_N"] / area
-    for n in (1, 2):
+    for n in (2,):
         cycle = (t > t0 + n * period) & (t <= t0 + (n + 1) * period)
         peak = np.argmax(stress[cycle])
         assert stress[cycle][peak] == pytest.approx(AMPLITUDE + weight, rel=0.05)
@@ -161,19 +162,23 @@ def test_the_partial_plate_carries_the_haversine_on_its_own_area(partial):
 
 
 def test_the_grains_beside_the_plate_are_a_free_surface(partial):
-    """At the end: the grains under the plate (their centre inside its rim by a radius)
-    are below it and went down on average; the highest grain beside it (centre beyond
-    the rim by a radius) stands more than a radius above it, where a plate over the
-    whole width would have pushed it down."""
+    """At the end: no grain within the plate's rim (its centre inside it by a radius)
+    straddles the plate (a grain of the heap beside it may have rolled on top of it);
+    those below it went down on average; the highest grain beside it (centre beyond the
+    rim by a radius) stands more than a radius above it, where a plate over the whole
+    width would have pushed it down."""
     out, results = partial
     arrays, _, _, _ = checkpoint.read(out / "checkpoints" / "checkpoint.h5")
     positions, radii = arrays["grains/positions"], arrays["grains/radii"]
     plate = results["cycles"][-1]["plate_height_m"]
     rho = np.hypot(positions[:, 0], positions[:, 1])
     rim = FRACTION * RADIUS
-    under, beside = rho < rim - radii, rho > rim + radii
+    inside, beside = rho < rim - radii, rho > rim + radii
+    under = inside & (positions[:, 2] < plate)
     assert under.sum() > 30 and beside.sum() > 30
     assert np.all(positions[under, 2] + radii[under] < plate + 0.01 * radii[under])
+    on_top = inside & ~under
+    assert np.all(positions[on_top, 2] - radii[on_top] > plate - 0.01 * radii[on_top])
     assert np.max(positions[beside, 2] + radii[beside]) > plate + np.mean(radii)
     residual = load_residuals(out)[-1, :, 2]
     assert np.mean(residual[under]) < 0 and np.mean(residual[under]) < np.mean(residual[beside])
@@ -221,11 +226,13 @@ def test_with_symmetry_planes_the_plate_is_the_whole_containers_and_its_area_the
 
 def test_the_quarter_model_loads_a_quarter_of_the_disk(tmp_path):
     """PARTIAL cut by the symmetry planes x = 0 and y = 0 (75 grains, a quarter of 300):
-    the plate's area is pi (f R)^2 / 4 and, seated, it carries Delta sigma plus its
-    weight over that area at mid-cycle (5 %)."""
+    the plate's area is pi (f R)^2 / 4 and, seated (after the three cycles that punch it
+    in, 10 % over), it carries Delta sigma plus its weight over that area at mid-cycle
+    (5 %)."""
     data = copy.deepcopy(PARTIAL)
     data["walls"]["symmetry"] = [{"axis": "x"}, {"axis": "y"}]
     data["grains"]["count"] = 75
+    data["protocol"]["cycles"] = 5       # the small bed settles 0.1 mm a cycle for three
     out = tmp_path / "run"
     results = execute(validate(data), out, show_progress=False, echo=lambda *a: None)
     area = math.pi * (FRACTION * RADIUS) ** 2 / 4
@@ -237,7 +244,7 @@ def test_the_quarter_model_loads_a_quarter_of_the_disk(tmp_path):
     t = series["time [s]"]
     stress = series["force_plate [N]"] / area
     weight = results["deposition"]["total_weight_N"] / area
-    for n in (1, 2):
+    for n in (3, 4):
         cycle = (t > t0 + n * period) & (t <= t0 + (n + 1) * period)
         peak = np.argmax(stress[cycle])
         assert stress[cycle][peak] == pytest.approx(AMPLITUDE + weight, rel=0.05)

@@ -259,12 +259,10 @@ def test_an_older_integrator_section_loads_as_the_engine_section(small_config):
 
 @pytest.mark.parametrize("example, kind, motion", [
     ("examples/oedometer.toml", "event_driven", "servo"),
-    ("examples/cyclic.toml", "contact_dynamics", "piston"),
     ("examples/cyclic.toml", "event_driven", "piston")])
 def test_an_engine_that_cannot_move_the_protocols_walls_is_refused(example, kind, motion):
     """A protocol whose walls need a motion the engine lacks (hard grains have no servo
-    or piston, rigid ones no piston) is refused before any work, naming the engines
-    that offer it."""
+    or piston) is refused before any work, naming the engines that offer it."""
     raw = load(example).model_dump()
     raw["engine"] = {"kind": kind}
     with pytest.raises(ConfigError, match=f"engine.kind = '{kind}' offers no {motion} "

@@ -415,7 +415,10 @@ class Config(Section):
         """Warn of material fields the user set that no chosen contact law reads (a
         Young's modulus under the linear spring, friction with no tangential law): they
         would be ignored without a word.  A field set to its default is no choice: a
-        resolved config (dumps, a sweep's points) writes every default out."""
+        resolved config (dumps, a sweep's points) writes every default out.  Engines
+        that do not read the contact laws (rigid grains) are not checked."""
+        if not engines.ENGINES[self.engine.kind].contact_laws:
+            return self
         laws = {mode: getattr(self.contact, mode) for mode in registry.MODES}
         read = material_fields(c for mode, name in laws.items()
                                for c in registry.get(mode, name).columns)

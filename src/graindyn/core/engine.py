@@ -160,6 +160,10 @@ class Engine(Protocol):
     wall, the force the grains exert on it [N] (Walls.normal_force, Walls.stress), its
     prescribed motion (Walls.motion_of)."""
 
+    rigid: bool
+    """Whether the grains are rigid: no contact elasticity, so no elastic energy and no
+    overlap (event-driven and contact dynamics engines); False for soft grains."""
+
     @property
     def time(self) -> float:
         """Simulated time [s]."""

@@ -16,7 +16,8 @@ settle).  At each level the sample relaxes until it is at rest:
     |F_bottom + F_side friction - F_piston - weight| <= force_tolerance p A   and
     E_kin + E_rot <= rest_ratio E_elastic,
 
-checked between compiled chunks (at most servo_time/4 apart), or until level_max_time
+(rigid grains, engine.Engine.rigid, store no elastic energy: for them the reference is
+p A R_mean, the work of the load over one mean radius), checked between compiled chunks (at most servo_time/4 apart), or until level_max_time
 passes (the level is then recorded with at_rest = false).
 
 Servo control law: v = clamp(g (p A - F_piston), -v_max, v_max) along the piston normal,
@@ -28,7 +29,10 @@ sample responds elastically the force error decays no faster than exp(-t/tau), a
 tau >> the sample's wave transit time keeps the loading quasi-static; the wall has no
 inertia and cannot overshoot by itself.  Where the sample yields (dF/dz <= 0) or far from
 the target (error > 10 %) the piston moves at up to v_max; a sample that creeps at speed
-u leaves a force error of 0.1 p A u/v_max until it stops creeping.
+u leaves a force error of 0.1 p A u/v_max until it stops creeping.  On rigid grains the
+gain stays at its bound v_max/(0.1 p A): an engine of rigid grains solves the servo's
+velocity with the contact impulses (contact dynamics), so it cannot overshoot, and a
+secant stiffness of rigid contacts means nothing.
 
 Recorded at each level (``rows``): the stresses on the piston and on the bottom, the
 mean lateral stress on the side walls (normal contact forces over the wetted side
@@ -100,7 +104,7 @@ class OedometerSettings(SettleSettings):
     force_tolerance: Float = _f(0.01, "a level is at rest when |F_piston - F_target| <= "
                                 "this fraction of F_target ...; (0, 0.5]", gt=0, le=0.5)
     rest_ratio: Float = _f(1e-4, "... and kinetic <= this fraction of the elastic energy of "
-                           "the contacts [-]; > 0", gt=0)
+                           "the contacts (rigid grains: of p A R_mean) [-]; > 0", gt=0)
     level_max_time: Float = _f(0.05, "longest relaxation per level [s] of simulated time "
                                "(the level is then recorded as not at rest); (0, 100]",
                                gt=0, le=100)
@@ -237,7 +241,7 @@ class Load(ProtocolPhase):
         def check(sim):
             """At every pause (at least every servo_time/4): tune the servo's gain, keep
             the peak, end a level at rest; stop for the runner or at the level's end."""
-            if p.loading == "servo":
+            if p.loading == "servo" and not sim.rigid:
                 self._tune(sim, k, state)
             state["peak"] = max(state.get("peak", 0.0), sim.walls.normal_force(k))
             if self._at_rest(sim, k):
@@ -333,7 +337,8 @@ class Load(ProtocolPhase):
         """Piston force on target, the sample in static equilibrium (bottom force plus
         side-wall friction carry the piston force plus the weight, within the same
         tolerance: an oscillation caught at its turning point has no kinetic energy but
-        does not balance) and the kinetic energy small against the elastic energy."""
+        does not balance) and the kinetic energy small against the elastic energy (rigid
+        grains: against p A R_mean, the work of the load over a mean radius)."""
         p = self.p
         walls = sim.walls
         target = walls.motion_of(k).force
@@ -345,7 +350,8 @@ class Load(ProtocolPhase):
         if abs(bottom + friction - piston - self._weight(sim)) > p.force_tolerance * target:
             return False
         e = energy_budget(sim)
-        return e["kinetic"] + e["rotational"] <= p.rest_ratio * e["elastic"]
+        reference = target * float(np.mean(sim.state.radii)) if sim.rigid else e["elastic"]
+        return e["kinetic"] + e["rotational"] <= p.rest_ratio * reference
 
     def _side_friction(self, sim):
         """Vertical force [N] the side walls carry by friction (upward on the grains)."""

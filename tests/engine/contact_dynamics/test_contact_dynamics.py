@@ -219,3 +219,57 @@ def test_registry_entry_builds_and_checks():
     assert built.dt == 2e-4 and built.theta == 1.0
     with pytest.raises(ValueError, match="engine.dt"):
         entry.check(state, setup, entry.settings(dt=5e-3))
+
+
+def _rolling(dim, gravity, mu, mu_r, **options):
+    start = [[0.0, 0.0, R]] if dim == 3 else [[0.0, R]]
+    material = gd.Material(restitution=0.1, friction_static=mu, friction_sliding=mu,
+                           friction_rolling=mu_r)
+    return engine(start, dim=dim, gravity=gravity, materials=[material], **options)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_rolling_resistance_stops_a_rolling_grain(dim):
+    """A grain rolling on a level floor at v0 (spin v0/R), rolling friction mu_r: the
+    couple mu_r R m g against the roll decelerates it at a = mu_r g / (1 + I/(m R^2))
+    (5/7 mu_r g, 2/3 mu_r g) without slipping; it stops after v0^2 / (2 a) and stays,
+    and its kinetic energy is dissipated by the rolling couple, none by the normal law."""
+    mu_r, v0 = 0.05, 0.02
+    gravity = (0.0, 0.0, -G) if dim == 3 else (0.0, -G, 0.0)
+    e = _rolling(dim, gravity, 0.5, mu_r)
+    ratio = 0.4 if dim == 3 else 0.5
+    spin_axis, sign = (1, 1.0) if dim == 3 else (2, -1.0)
+    e.state.velocities[0, 0] = v0
+    e.state.angular_velocities[0, spin_axis] = sign * v0 / R
+    kinetic = 0.5 * e.state.masses[0] * v0**2 * (1 + ratio)
+    a = mu_r * G / (1 + ratio)
+    e.run(time=0.02)
+    assert e.state.velocities[0, 0] == pytest.approx(v0 - a * e.time, rel=1e-9)
+    assert sign * e.state.angular_velocities[0, spin_axis] * R == pytest.approx(
+        e.state.velocities[0, 0], rel=1e-9)
+    e.run(time=v0 / a)
+    assert abs(e.state.velocities[0, 0]) < 1e-12 and \
+        abs(e.state.angular_velocities[0, spin_axis]) < 1e-9
+    assert e.state.positions[0, 0] == pytest.approx(v0**2 / (2 * a), rel=1e-3)
+    energies = e.energies()
+    assert energies["dissipated_tangential"] == pytest.approx(kinetic, rel=1e-9)
+    assert abs(energies["dissipated_normal"]) < 1e-9 * kinetic
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("mu_r", [0.5, 0.1])
+def test_rolling_resistance_holds_or_slows_a_grain_on_an_incline(dim, mu_r):
+    """A grain on the 20 degree incline with ample sliding friction: held at rest when
+    mu_r >= tan (0.364); otherwise it rolls without slipping with
+    a = g (sin - mu_r cos) / (1 + I/(m R^2))."""
+    sin, cos = math.sin(INCLINE), math.cos(INCLINE)
+    gravity = (G * sin, 0.0, -G * cos) if dim == 3 else (G * sin, -G * cos, 0.0)
+    e = _rolling(dim, gravity, 0.9, mu_r)
+    ratio = 0.4 if dim == 3 else 0.5
+    e.run(time=0.05)
+    if mu_r >= math.tan(INCLINE):
+        assert np.abs(e.state.velocities).max() < 1e-12
+        assert np.abs(e.state.angular_velocities).max() < 1e-9
+    else:
+        acceleration = e.state.velocities[0, 0] / e.time
+        assert acceleration == pytest.approx(G * (sin - mu_r * cos) / (1 + ratio), rel=1e-7)

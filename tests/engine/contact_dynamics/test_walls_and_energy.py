@@ -106,3 +106,67 @@ def test_disk_rests_on_a_segment():
     assert c.normal_force.tolist() == pytest.approx([m * G], rel=1e-8)
     np.testing.assert_allclose(c.normal[0], [0.0, 1.0, 0.0], atol=1e-12)
     assert np.abs(e.state.velocities).max() < 1e-12
+
+
+def _piston(z, mass, force=0.0, **motion):
+    return gd.Plane((0.0, 0.0, z), (0.0, 0.0, -1.0), name="piston", area=4 * R * R,
+                    motion=gd.Motion("piston", direction=(0.0, 0.0, -1.0), force=force,
+                                     mass=mass, **motion))
+
+
+def test_free_piston_falls_by_newtons_law():
+    """A piston of mass M pushed by F with nothing in front of it moves with the
+    semi-implicit step of core/walls.py: s_n = n dt F/M, x_n = dt^2 F/M n(n+1)/2."""
+    M, F, dt, n = 0.05, 2.0, 1e-4, 300
+    e = rigid([[0.0, 0.0, R]], [gd.Plane((0, 0, 0), (0, 0, 1)), _piston(50 * R, M, F)],
+              gravity=(0.0, 0.0, 0.0), dt=dt)
+    e.run(steps=n)
+    assert e.walls.offset[1, 2] == pytest.approx(-dt**2 * F / M * n * (n + 1) / 2,
+                                                 rel=1e-12)
+    assert e.walls.velocity[1, 2] == pytest.approx(-n * dt * F / M, rel=1e-12)
+
+
+@pytest.mark.parametrize("ratio", [0.5, 1.0, 4.0])
+def test_piston_collides_elastically_with_a_free_sphere(ratio):
+    """A piston of mass M = ratio m at speed s on a free sphere of mass m (no gravity,
+    no applied force, e = 1): the 1D elastic collision of two bodies, sphere at
+    2 M s/(M + m), piston at (M - m) s/(M + m); the energy of both is kept."""
+    s = 0.05
+    e = rigid([[0.0, 0.0, 5 * R]], [_piston(6.5 * R, 1.0)], gravity=(0.0, 0.0, 0.0),
+              restitution=1.0, theta=1.0)
+    m = e.state.masses[0]
+    M = ratio * m
+    e.set_motion("piston", gd.Motion("piston", direction=(0.0, 0.0, -1.0), mass=M))
+    e.walls.velocity[0] = (0.0, 0.0, -s)
+    e.run(steps=200)
+    assert e.state.velocities[0, 2] == pytest.approx(-2 * M * s / (M + m), rel=1e-9)
+    assert e.walls.velocity[0, 2] == pytest.approx(-(M - m) * s / (M + m), abs=1e-9 * s)
+    kinetic = 0.5 * m * e.state.velocities[0, 2] ** 2 + 0.5 * M * e.walls.velocity[0, 2] ** 2
+    assert kinetic == pytest.approx(0.5 * M * s**2, rel=1e-9)
+
+
+def test_massive_piston_rests_on_a_column():
+    """A piston of mass M with an applied force F dropped on a column of 4 spheres on a
+    floor under gravity: once at rest, the piston's contact carries F (its own weight is
+    in F, core/walls.py), the floor F plus the column's weight, each contact between
+    spheres F plus the weight above it, and nothing interpenetrates.  (M is ten grain
+    masses: the Gauss-Seidel sweeps converge the slower the heavier the piston.)"""
+    M, F = 1e-4, 2e-3
+    z = [R + 2 * R * k for k in range(4)]
+    e = rigid([[0.0, 0.0, h] for h in z],
+              [gd.Plane((0, 0, 0), (0, 0, 1), name="floor"), _piston(8.2 * R, M, F)],
+              theta=1.0, tolerance=1e-7, max_iterations=5000)
+    e.run(time=0.2)
+    m = e.state.masses[0]
+    assert abs(e.walls.velocity[1, 2]) < 1e-9
+    assert e.walls.normal_force(1) == pytest.approx(F, rel=1e-6)
+    assert e.walls.normal_force(0) == pytest.approx(F + 4 * m * G, rel=1e-6)
+    c = e.contacts()
+    above = np.maximum(e.state.positions[c.i, 2], e.state.positions[c.j, 2])
+    expected = F + m * G * np.array([sum(h >= a - 1e-9 for h in e.state.positions[:, 2])
+                                     for a in above])
+    np.testing.assert_allclose(np.sort(c.normal_force), np.sort(expected), rtol=1e-6)
+    heights = np.sort(e.state.positions[:, 2])
+    assert heights[0] >= R * (1 - 1e-9)
+    assert np.diff(heights).min() >= 2 * R * (1 - 1e-9)
+    assert 8.2 * R + e.walls.offset[1, 2] - heights[-1] >= R * (1 - 1e-9)

@@ -33,8 +33,8 @@ class Grains(NamedTuple):
 class WallBundle(NamedTuple):
     """The arrays of core.walls.Walls (kind, geometry, offset, base, velocity, force,
     motion_kind, motion, material) and reference_offset (W, 3) [m], the offsets at the
-    last list build; servo (W, 10) and push (W,) [N s], the servo walls' rows of the
-    step's solve (solver.servo_velocity), rewritten every step."""
+    last list build; solved (W, 10) and push (W,) [N s], the rows of the servo walls and
+    pistons of the step's solve (solver.solved_velocity), rewritten every step."""
     kind: np.ndarray
     geometry: np.ndarray
     offset: np.ndarray
@@ -45,7 +45,7 @@ class WallBundle(NamedTuple):
     motion: np.ndarray
     material: np.ndarray
     reference_offset: np.ndarray
-    servo: np.ndarray
+    solved: np.ndarray
     push: np.ndarray
 
 
@@ -58,15 +58,17 @@ class PeriodicBox(NamedTuple):
 
 class Tables(NamedTuple):
     """Per pair of materials (grain or wall): restitution (M, M) [-] (Newton's e_n),
-    friction (M, M, 2) [-] (mu_s, mu_d)."""
+    friction (M, M, 2) [-] (mu_s, mu_d), rolling (M, M) [-] (mu_r)."""
     restitution: np.ndarray
     friction: np.ndarray
+    rolling: np.ndarray
 
 
 class Work(NamedTuple):
     """The solver's per-contact work space: active (P,), wall_active (Q,) bool (gap below
     the detection gap this step); bound (P,), wall_bound (Q,) [m/s] the normal velocity
-    bounds; free (P, 3), wall_free (Q, 3) [m/s] the free relative velocities."""
+    bounds; free (P, 6), wall_free (Q, 6) the free relative velocities of the contact
+    points [m/s] (0-2) and the free relative spins [rad/s] (3-5)."""
     active: np.ndarray
     wall_active: np.ndarray
     bound: np.ndarray
@@ -78,5 +80,5 @@ class Work(NamedTuple):
 def new_work(pairs, wall_candidates):
     """Work space for ``pairs`` pair slots and ``wall_candidates`` wall slots."""
     return Work(np.zeros(pairs, np.bool_), np.zeros(wall_candidates, np.bool_),
-                np.zeros(pairs), np.zeros(wall_candidates), np.zeros((pairs, 3)),
-                np.zeros((wall_candidates, 3)))
+                np.zeros(pairs), np.zeros(wall_candidates), np.zeros((pairs, 6)),
+                np.zeros((wall_candidates, 6)))

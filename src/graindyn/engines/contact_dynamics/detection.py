@@ -24,12 +24,13 @@ class Lists(NamedTuple):
     the per-contact state of the solver.
 
     start : (N + 1,) int64;  partners : (P,) uint32 grain j of each listed pair (i < j)
-    impulses : (P, 3) float64 [N s] impulse on grain i of the last step (global frame)
+    impulses : (P, 6) float64 the last step's impulse on grain i [N s] (columns 0-2) and
+      rolling couple impulse on grain i [N m s] (3-5), global frame (IMPULSE_WIDTH)
     owner : (P,) uint32 grain i of each listed pair (written by each rebuild)
     gap : (P,) float64 [m] |r_i - r_j| - R_i - R_j at the start of the step
     normal : (P, 3) unit normal from j to i
     wall_start : (N + 1,) int64;  wall_ids : (Q,) uint32 wall of each candidate
-    wall_impulses : (Q, 3) [N s] impulse on the grain;  wall_owner : (Q,) uint32 grain
+    wall_impulses : (Q, 6) impulse [N s] and couple [N m s] on the grain;  wall_owner : (Q,) uint32 grain
     wall_gap : (Q,) [m] distance to the wall minus R;  wall_normal : (Q, 3) from the wall
     scratch_* : work space of the rebuild (same shapes);  reverse_start, reverse_pairs:
       the pairs by their second grain (written by the core's rebuild, unused here)
@@ -56,23 +57,28 @@ class Lists(NamedTuple):
     reverse_pairs: np.ndarray
 
 
+# columns of the impulses kept per contact: the impulse (3) and the rolling couple (3)
+IMPULSE_WIDTH = 6
+
+
 def new_lists(n, pair_capacity, wall_capacity, old=None):
     """Lists for n grains with room for the given numbers of pairs and wall candidates,
     keeping the lists of ``old`` (a Lists) when given."""
     arrays = dict(
         start=np.zeros(n + 1, np.int64), partners=np.zeros(pair_capacity, np.uint32),
-        impulses=np.zeros((pair_capacity, 3)), owner=np.zeros(pair_capacity, np.uint32),
+        impulses=np.zeros((pair_capacity, IMPULSE_WIDTH)),
+        owner=np.zeros(pair_capacity, np.uint32),
         gap=np.zeros(pair_capacity), normal=np.zeros((pair_capacity, 3)),
         wall_start=np.zeros(n + 1, np.int64), wall_ids=np.zeros(wall_capacity, np.uint32),
-        wall_impulses=np.zeros((wall_capacity, 3)),
+        wall_impulses=np.zeros((wall_capacity, IMPULSE_WIDTH)),
         wall_owner=np.zeros(wall_capacity, np.uint32), wall_gap=np.zeros(wall_capacity),
         wall_normal=np.zeros((wall_capacity, 3)),
         scratch_start=np.zeros(n + 1, np.int64),
         scratch_partners=np.zeros(pair_capacity, np.uint32),
-        scratch_impulses=np.zeros((pair_capacity, 3)),
+        scratch_impulses=np.zeros((pair_capacity, IMPULSE_WIDTH)),
         scratch_wall_start=np.zeros(n + 1, np.int64),
         scratch_wall_ids=np.zeros(wall_capacity, np.uint32),
-        scratch_wall_impulses=np.zeros((wall_capacity, 3)),
+        scratch_wall_impulses=np.zeros((wall_capacity, IMPULSE_WIDTH)),
         reverse_start=np.zeros(n + 1, np.int64),
         reverse_pairs=np.zeros(pair_capacity, np.uint32))
     if old is not None:

@@ -15,7 +15,7 @@ import numpy as np
 from ...core.engine import (Contacts, SimulationError, WallContacts, checked_gravity,
                             copy_into)
 from ...core.species import Material
-from ...core.walls import PISTON, Walls
+from ...core.walls import Walls
 from ...core.triggers import NO_CONDITION, pauses
 from ..soft.energy import rigid_energies
 from . import stepping as st
@@ -43,25 +43,29 @@ def suggested_time_step(state, gravity):
 
 def material_tables(materials):
     """stepping Tables of the materials, mixed pair by pair by the geometric mean as
-    core/species.py does: restitution e (None: 1, elastic), friction (mu_s, mu_d)."""
+    core/species.py does: restitution e (None: 1, elastic), friction (mu_s, mu_d),
+    rolling friction mu_r (friction_rolling)."""
     k = len(materials)
     e = np.array([1.0 if m.restitution is None else m.restitution for m in materials])
     mu = np.array([[m.friction_static, m.friction_sliding] for m in materials])
+    mu_r = np.array([m.friction_rolling for m in materials])
     for m in materials:
         if m.friction_sliding > m.friction_static:
             raise ValueError(f"material {m.name!r}: friction_sliding {m.friction_sliding} "
                              f"exceeds friction_static {m.friction_static}")
     return Tables(restitution=np.sqrt(np.outer(e, e)).reshape(k, k),
-                  friction=np.sqrt(mu[:, None, :] * mu[None, :, :]))
+                  friction=np.sqrt(mu[:, None, :] * mu[None, :, :]),
+                  rolling=np.sqrt(np.outer(mu_r, mu_r)).reshape(k, k))
 
 
 class ContactDynamics:
     """Rigid grains by contact dynamics (Moreau, Jean; Pérez Sec. 2 Eq. 11-12), SI units.
 
     state : core.state.State;  materials : list of core.species.Material (restitution
-      e_n, None = 1; friction_static mu_s, friction_sliding mu_d <= mu_s; the rest unused)
-    walls : Plane/Cylinder/Segment list (fixed, "velocity", "sinusoid" or "servo"
-      motion, the servo solved with the contacts; piston walls are not offered);
+      e_n, None = 1; friction_static mu_s, friction_sliding mu_d <= mu_s; friction_rolling
+      mu_r, rolling resistance (solver.py); the rest unused)
+    walls : Plane/Cylinder/Segment/Disk list (fixed, "velocity", "sinusoid", "servo" or
+      "piston" motion; the servo's and the piston's velocity solved with the contacts);
       periodic : Periodic list
     gravity (3,) [m/s^2];  dt [s] (None: suggested_time_step);  theta [-] in [0.5, 1]
       (stepping.py; 1 gives Pérez Eq. 11-12, 0.5 the default: exact free flight)
@@ -75,6 +79,8 @@ class ContactDynamics:
     RuntimeWarning, with ``worst_residual``).
     """
 
+    rigid = True        # rigid grains (engine.Engine.rigid)
+
     def __init__(self, state, materials, walls=(), periodic=(), gravity=(0.0, 0.0, -9.81),
                  dt=None, theta=0.5, gap=None, margin=None, tolerance=1e-4,
                  max_iterations=1000):
@@ -87,8 +93,6 @@ class ContactDynamics:
         self.walls = walls if isinstance(walls, Walls) else Walls(walls, periodic)
         if np.any(self.walls.material >= n_mat):
             raise ValueError(f"wall material ids must be in 0..{n_mat - 1}")
-        for k in range(len(self.walls)):
-            self._check_motion(k, self.walls.motion_kind[k])
         gravity = checked_gravity(gravity, state.dim)
         self.tables = material_tables(self.materials)
         if dt is None:
@@ -119,7 +123,7 @@ class ContactDynamics:
         n = state.n
         self.reference_positions = state.positions.copy()
         self.reference_offset = self.walls.offset.copy()
-        self._servo = np.zeros((len(self.walls), 10))
+        self._solved = np.zeros((len(self.walls), 10))
         self._push = np.zeros(len(self.walls))
         self.old_velocities = np.zeros((n, 3))
         self.old_angular_velocities = np.zeros((n, 3))
@@ -130,12 +134,6 @@ class ContactDynamics:
         old = self.lists if keep else None
         self.lists = new_lists(self.state.n, pairs, wall_candidates, old)
         self.work = new_work(pairs, wall_candidates)
-
-    def _check_motion(self, k, kind):
-        if kind == PISTON:
-            raise ValueError(
-                f"wall {self.walls.walls[k].name!r}: piston walls (a wall of a mass) are "
-                "not offered by the contact dynamics engine yet; use a servo wall")
 
     # ------------------------------------------------------------------ bundles
     def _grains(self):
@@ -156,7 +154,7 @@ class ContactDynamics:
         return WallBundle(kind=w.kind, geometry=w.geometry, offset=w.offset, base=w.base,
                           velocity=w.velocity, force=w.force, motion_kind=w.motion_kind,
                           motion=w.motion, material=w.material,
-                          reference_offset=self.reference_offset, servo=self._servo,
+                          reference_offset=self.reference_offset, solved=self._solved,
                           push=self._push)
 
     def _periodic(self):
@@ -298,10 +296,16 @@ class ContactDynamics:
 
     def restore(self, arrays):
         """Put a ``snapshot`` back (an engine built from the same inputs); ValueError
-        naming what is missing or does not fit."""
+        naming what is missing or does not fit.  A snapshot whose impulses have three
+        columns (written before rolling resistance) restores with zero couples."""
         missing = [k for k in self._arrays() if k not in arrays]
         if missing:
             raise ValueError(f"snapshot lacks {missing}")
+        arrays = dict(arrays)
+        for name in ("lists/impulses", "lists/wall_impulses"):
+            old = np.asarray(arrays[name])
+            if old.ndim == 2 and old.shape[1] == 3:
+                arrays[name] = np.hstack([old, np.zeros_like(old)])
         pairs = np.asarray(arrays["lists/partners"]).size
         wall_candidates = np.asarray(arrays["lists/wall_ids"]).size
         self._allocate(pairs, wall_candidates)
@@ -315,7 +319,7 @@ class ContactDynamics:
         n = self.state.n
         m = int(start[n])
         touching = np.any(impulses[:m] != 0.0, axis=1)
-        return touching, impulses[:m][touching] / self.dt
+        return touching, impulses[:m, :3][touching] / self.dt
 
     def contacts(self):
         """The grain pairs that carried an impulse in the last step (engine.Contacts):
@@ -403,10 +407,11 @@ class ContactDynamics:
 
     def set_motion(self, wall, motion):
         """Prescribe ``motion`` (walls.Motion) to ``wall`` from now on
-        (engine.Engine.set_motion); "piston" is refused (ValueError)."""
-        k = self.walls.index(wall)
-        self._check_motion(k, motion.row()[0])
-        self.walls.prescribe(k, motion, self.time)
+        (engine.Engine.set_motion).  A "piston" (a wall of a mass driven by an applied
+        force) has its velocity solved with the contact impulses of each step
+        (solver.solved_velocity): its momentum balance is implicit, so it rests on
+        rigid grains at once, without bouncing on a stiffness that is not there."""
+        self.walls.prescribe(self.walls.index(wall), motion, self.time)
 
     def set_servo(self, wall, *, force=None, stress=None, gain=None, time_constant=None,
                   stiffness=None, max_speed=None, direction=None):
@@ -415,7 +420,7 @@ class ContactDynamics:
         wall's area, gain ``gain`` [m/(N s)] or 1/(``stiffness`` [N/m] ``time_constant``
         [s]), largest speed ``max_speed`` [m/s], ``direction`` into the grains; a setting
         not given keeps its value on a servo wall.  The wall's velocity is solved with
-        the contact impulses of each step (solver.servo_velocity), so against rigid
+        the contact impulses of each step (solver.solved_velocity), so against rigid
         grains at rest it carries the target at once."""
         self.set_motion(wall, self.walls.servo(
             wall, force=force, stress=stress, gain=gain, time_constant=time_constant,

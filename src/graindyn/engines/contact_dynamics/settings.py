@@ -69,4 +69,4 @@ CONTACT_DYNAMICS = EngineKind(
     "contact_dynamics", ContactDynamicsEngine, build, check,
     "contact dynamics (Moreau-Jean): rigid grains, Signorini, exact Coulomb friction and "
     "Newton restitution solved by nonlinear Gauss-Seidel every step",
-    ("fixed", "velocity", "sinusoid", "servo"), contact_laws=False)
+    ("fixed", "velocity", "sinusoid", "servo", "piston"), contact_laws=False)

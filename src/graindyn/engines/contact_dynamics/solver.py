@@ -17,8 +17,15 @@ frame: W_nn = 1/m_i + 1/m_j, W_tt = W_nn + R_i^2/I_i + R_j^2/I_j (isotropic in t
 tangent plane): the local problem has the closed-form solution below (normal
 projection, then the Coulomb disk), with no inner iteration.
 
+Rolling resistance (mu_r > 0, the 'constant' law of physics/rolling.py at the velocity
+level): a couple impulse C on grain i (-C on grain j) in the tangent plane with
+|C| <= mu_r R* P_n, R* = R_i R_j/(R_i + R_j) (R_i against a wall), holding the relative
+rolling spin w_r = (w_i - w_j)_t at zero below the bound (no rolling) and opposing it
+at the bound, C = -mu_r R* P_n w_r/|w_r|; its operator 1/I_i + 1/I_j is isotropic, so it
+is solved in closed form like the friction, within the same visit, after it.
+
 Convergence, tested after each sweep: the relative change of the impulses
-sum |P^k - P^(k-1)| / sum |P^k| and the Signorini violation max |min(W_nn P_n, u_n - b)|
+sum |P^k - P^(k-1)| / sum |P^k| (a couple counted as |C| / R*) and the Signorini violation max |min(W_nn P_n, u_n - b)|
 (a complementarity residual in velocity units, zero exactly when Signorini holds) over a
 velocity scale V (the largest of |g| dt, |b| and the free normal speeds) must both be
 at most ``tolerance``; the residual reported is the larger of the two.
@@ -100,10 +107,47 @@ def local_solve(ux, uy, uz, nx, ny, nz, px, py, pz, bound, wnn, wtt, mu_s, mu_d)
 
 
 @scalar
+def _roll(angular_velocities, inv_inertia, i, j, nx, ny, nz, impulses, k, limit):
+    """The rolling couple impulse of contact k (module docstring) with the others fixed,
+    |C| <= ``limit`` [N m s]; the spins updated at once.  Returns (|dC|, |C|) [N m s]."""
+    wrr = inv_inertia[i]
+    w = angular_velocities
+    rx, ry, rz = w[i, 0], w[i, 1], w[i, 2]
+    if j >= 0:
+        wrr += inv_inertia[j]
+        rx -= w[j, 0]
+        ry -= w[j, 1]
+        rz -= w[j, 2]
+    if wrr == 0.0:
+        return 0.0, 0.0
+    cx, cy, cz = impulses[k, 3], impulses[k, 4], impulses[k, 5]
+    rn = rx * nx + ry * ny + rz * nz
+    cn = cx * nx + cy * ny + cz * nz
+    sx = rx - rn * nx - wrr * (cx - cn * nx)      # rolling spin without this couple
+    sy = ry - rn * ny - wrr * (cy - cn * ny)
+    sz = rz - rn * nz - wrr * (cz - cn * nz)
+    speed = math.sqrt(sx * sx + sy * sy + sz * sz)
+    scale = -1.0 / wrr if speed <= wrr * limit else -limit / speed
+    qx, qy, qz = scale * sx, scale * sy, scale * sz
+    impulses[k, 3], impulses[k, 4], impulses[k, 5] = qx, qy, qz
+    dx, dy, dz = qx - cx, qy - cy, qz - cz
+    w[i, 0] += inv_inertia[i] * dx
+    w[i, 1] += inv_inertia[i] * dy
+    w[i, 2] += inv_inertia[i] * dz
+    if j >= 0:
+        w[j, 0] -= inv_inertia[j] * dx
+        w[j, 1] -= inv_inertia[j] * dy
+        w[j, 2] -= inv_inertia[j] * dz
+    return math.sqrt(dx * dx + dy * dy + dz * dz), math.sqrt(qx * qx + qy * qy + qz * qz)
+
+
+@scalar
 def _visit(velocities, angular_velocities, inv_mass, inv_inertia, i, j, ri, rj, normal,
-           impulses, k, bound, mu_s, mu_d, wall_velocity, w, compliance):
-    """One contact's Gauss-Seidel update: (|dP| [N s], |P| [N s], violation [m/s]);
-    ``compliance`` [1/kg] is added to W_nn (a servo wall's g/dt (u . n)^2)."""
+           impulses, k, bound, mu_s, mu_d, mu_r, r_eff, wall_velocity, w, compliance):
+    """One contact's Gauss-Seidel update, rolling couple included when mu_r > 0 (arm
+    r_eff = R* [m]): (|dP| [N s], |P| [N s], violation [m/s]), a couple counted as
+    |C| / R*; ``compliance`` [1/kg] is added to W_nn (a solved wall's response
+    (u . n)^2)."""
     nx, ny, nz = normal[k, 0], normal[k, 1], normal[k, 2]
     vx, vy, vz = 0.0, 0.0, 0.0
     wnn = inv_mass[i] + compliance
@@ -125,49 +169,74 @@ def _visit(velocities, angular_velocities, inv_mass, inv_inertia, i, j, ri, rj, 
     dx, dy, dz = qx - px, qy - py, qz - pz
     apply_impulse(velocities, angular_velocities, inv_mass, inv_inertia, i, j, ri, rj,
                   nx, ny, nz, dx, dy, dz)
-    return math.sqrt(dx * dx + dy * dy + dz * dz), math.sqrt(qx * qx + qy * qy + qz * qz), \
-        violation
+    change = math.sqrt(dx * dx + dy * dy + dz * dz)
+    size = math.sqrt(qx * qx + qy * qy + qz * qz)
+    if mu_r > 0.0:
+        dc, c = _roll(angular_velocities, inv_inertia, i, j, nx, ny, nz, impulses, k,
+                      mu_r * r_eff * max(qx * nx + qy * ny + qz * nz, 0.0))
+        change += dc / r_eff
+        size += c / r_eff
+    return change, size, violation
 
 
 @scalar
-def servo_velocity(servo, wall_push, wall_velocity, w, dt):
-    """The velocity of servo wall w from the force of its contacts F = wall_push / dt
-    [N] (core/walls.py's law, here implicit: with this step's impulses),
-    v = u clamp(g (F_target - F), -v_max, v_max); servo (W, 10): flag, u (3), F_target
-    [N], g [m/(N s)], v_max [m/s], and the velocity the wall was moved at before the
-    solve (3, stepping.advance)."""
-    speed = min(max(servo[w, 5] * (servo[w, 4] - wall_push[w] / dt), -servo[w, 6]),
-                servo[w, 6])
+def solved_velocity(solved, wall_push, wall_velocity, w, dt):
+    """The velocity of wall w solved with the impulses, from wall_push (W,) [N s], the
+    sum P . u of its contacts' impulses on the grains:
+      servo (flag 1): v = u clamp(g (F_target - wall_push / dt), -v_max, v_max)
+        (core/walls.py's law, here implicit: with this step's impulses);
+      piston (flag 2): v = u (s_free - wall_push / M), the wall's momentum balance over
+        the step, s_free its speed after the applied force alone.
+    solved (W, 10): flag (0 none, 1 servo, 2 piston), u (3), then F_target [N], gain g
+    [m/(N s)], v_max [m/s] (servo) or s_free [m/s], 1/M [1/kg], 0 (piston), and the
+    velocity the wall was moved at before the solve (3, stepping.advance)."""
+    if solved[w, 0] == 1.0:
+        speed = min(max(solved[w, 5] * (solved[w, 4] - wall_push[w] / dt), -solved[w, 6]),
+                    solved[w, 6])
+    else:
+        speed = solved[w, 4] - solved[w, 5] * wall_push[w]
     for d in range(3):
-        wall_velocity[w, d] = servo[w, 1 + d] * speed
+        wall_velocity[w, d] = solved[w, 1 + d] * speed
+
+
+@scalar
+def wall_response(solved, w, dt):
+    """d(speed)/d(P . u) of a solved wall w [1/kg] (solved_velocity): g/dt for a servo,
+    1/M for a piston; 0 for any other wall."""
+    if solved[w, 0] == 1.0:
+        return solved[w, 5] / dt
+    if solved[w, 0] == 2.0:
+        return solved[w, 5]
+    return 0.0
 
 
 @kernel
 def nlgs(velocities, angular_velocities, inv_mass, inv_inertia, radii, materials, lists,
          wall_material, wall_velocity, active, wall_active, bound, wall_bound, friction,
-         tolerance, max_iterations, speed_scale, servo, wall_push, dt):
+         rolling, tolerance, max_iterations, speed_scale, solved, wall_push, dt):
     """Sweep the active contacts (``active``/``wall_active`` (P,)/(Q,) bool, their normal
     bounds ``bound``/``wall_bound`` [m/s]) until converged (module docstring) or
     ``max_iterations`` sweeps; the velocities and lists' impulses are updated in place.
-    friction : (M, M, 2) [-] mu_s, mu_d of each pair of materials (grain or wall).
-    servo : (W, 10) per wall (servo_velocity): flag 1 for a servo wall acting this step,
-      else 0.  A servo wall joins the solve: its velocity is servo_velocity of the force
-      F = sum P . u / dt of its contacts, updated after each of them (wall_push (W,)
-      holds sum P . u [N s]), and g/dt (u . n)^2 is added to its contacts' W_nn (the
-      wall's response to their impulse).
+    friction : (M, M, 2) [-] mu_s, mu_d of each pair of materials (grain or wall);
+    rolling : (M, M) [-] their mu_r.
+    solved : (W, 10) per wall (solved_velocity): flag 1 for a servo, 2 for a piston
+      acting this step, else 0.  Such a wall joins the solve: its velocity is
+      solved_velocity of sum P . u of its contacts' impulses (wall_push (W,) [N s]),
+      updated after each of them, and wall_response (u . n)^2 is added to its contacts'
+      W_nn (the wall's response to their impulse).
     Returns (sweeps done, residual)."""
     n = radii.size
-    for w in range(servo.shape[0]):
+    for w in range(solved.shape[0]):
         wall_push[w] = 0.0
     for q in range(lists.wall_start[n]):
         if wall_active[q]:
             w = lists.wall_ids[q]
-            wall_push[w] += lists.wall_impulses[q, 0] * servo[w, 1] \
-                + lists.wall_impulses[q, 1] * servo[w, 2] \
-                + lists.wall_impulses[q, 2] * servo[w, 3]
-    for w in range(servo.shape[0]):
-        if servo[w, 0] > 0.0:
-            servo_velocity(servo, wall_push, wall_velocity, w, dt)
+            wall_push[w] += lists.wall_impulses[q, 0] * solved[w, 1] \
+                + lists.wall_impulses[q, 1] * solved[w, 2] \
+                + lists.wall_impulses[q, 2] * solved[w, 3]
+    for w in range(solved.shape[0]):
+        if solved[w, 0] > 0.0:
+            solved_velocity(solved, wall_push, wall_velocity, w, dt)
     residual = 0.0
     sweeps = 0
     scale = max(speed_scale, 1e-300)
@@ -183,7 +252,8 @@ def nlgs(velocities, angular_velocities, inv_mass, inv_inertia, radii, materials
             mi, mj = materials[i], materials[j]
             dp, p, v = _visit(velocities, angular_velocities, inv_mass, inv_inertia, i, j,
                               radii[i], radii[j], lists.normal, lists.impulses, k, bound[k],
-                              friction[mi, mj, 0], friction[mi, mj, 1], wall_velocity, 0,
+                              friction[mi, mj, 0], friction[mi, mj, 1], rolling[mi, mj],
+                              radii[i] * radii[j] / (radii[i] + radii[j]), wall_velocity, 0,
                               0.0)
             change += dp
             total += p
@@ -196,22 +266,22 @@ def nlgs(velocities, angular_velocities, inv_mass, inv_inertia, radii, materials
             mi, mw = materials[i], wall_material[w]
             compliance = 0.0
             before = 0.0
-            if servo[w, 0] > 0.0:
-                un = lists.wall_normal[q, 0] * servo[w, 1] + lists.wall_normal[q, 1] \
-                    * servo[w, 2] + lists.wall_normal[q, 2] * servo[w, 3]
-                compliance = servo[w, 5] / dt * un * un
-                before = lists.wall_impulses[q, 0] * servo[w, 1] \
-                    + lists.wall_impulses[q, 1] * servo[w, 2] \
-                    + lists.wall_impulses[q, 2] * servo[w, 3]
+            if solved[w, 0] > 0.0:
+                un = lists.wall_normal[q, 0] * solved[w, 1] + lists.wall_normal[q, 1] \
+                    * solved[w, 2] + lists.wall_normal[q, 2] * solved[w, 3]
+                compliance = wall_response(solved, w, dt) * un * un
+                before = lists.wall_impulses[q, 0] * solved[w, 1] \
+                    + lists.wall_impulses[q, 1] * solved[w, 2] \
+                    + lists.wall_impulses[q, 2] * solved[w, 3]
             dp, p, v = _visit(velocities, angular_velocities, inv_mass, inv_inertia, i, -1,
                               radii[i], 0.0, lists.wall_normal, lists.wall_impulses, q,
                               wall_bound[q], friction[mi, mw, 0], friction[mi, mw, 1],
-                              wall_velocity, w, compliance)
-            if servo[w, 0] > 0.0:
-                wall_push[w] += lists.wall_impulses[q, 0] * servo[w, 1] \
-                    + lists.wall_impulses[q, 1] * servo[w, 2] \
-                    + lists.wall_impulses[q, 2] * servo[w, 3] - before
-                servo_velocity(servo, wall_push, wall_velocity, w, dt)
+                              rolling[mi, mw], radii[i], wall_velocity, w, compliance)
+            if solved[w, 0] > 0.0:
+                wall_push[w] += lists.wall_impulses[q, 0] * solved[w, 1] \
+                    + lists.wall_impulses[q, 1] * solved[w, 2] \
+                    + lists.wall_impulses[q, 2] * solved[w, 3] - before
+                solved_velocity(solved, wall_push, wall_velocity, w, dt)
             change += dp
             total += p
             violation = max(violation, v)

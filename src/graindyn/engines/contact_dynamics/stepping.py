@@ -23,14 +23,18 @@ return energy), until it opens.  (Keeping the term (1 - theta) u- in b instead, 
 the end gap is never negative, makes every touching impact at theta = 1/2 perfectly
 elastic: a grain on a floor then chatters for ever.)
 
-Walls move by their prescribed motion (core.walls.walls_advance) before the solve; a
-servo wall's velocity is solved with the impulses (solver.servo_velocity) and its
-offset corrected to it after the solve.
+Walls move by their prescribed motion (core.walls.walls_advance) before the solve; the
+velocity of a servo wall or a piston (a wall of a mass) is solved with the impulses
+(solver.solved_velocity) and its offset corrected to it after the solve: the piston's
+momentum balance M (s+ - s-) = dt F_applied - sum P . u is then implicit, with this
+step's impulses, as the grains' own.
 
 Energy: the step's loss D = -(dK + dV) + W_walls (K kinetic with rotation, V = -m g.r,
 W_walls = sum P . v_wall over wall contacts) is exact for the discrete step;
 friction's share -sum P_t . (u_t,free + u_t+)/2 (the work of the tangential impulses on
-the contact points between the free and final velocities) is dissipated_tangential,
+the contact points between the free and final velocities), with rolling resistance's
+-sum C . (w_r,free + w_r+)/2 (the couples on the relative spins), is
+dissipated_tangential,
 the rest dissipated_normal (impacts, and the numerical dissipation of theta > 1/2:
 dt^2 |g|^2 / 2 per grain and step at theta = 1 in free flight, zero at theta = 1/2).
 A loss within the rounding of the energies it is the difference of (ROUNDING of them)
@@ -42,8 +46,8 @@ import numpy as np
 
 from ..._jit import kernel, scalar
 from ...core.triggers import ENERGY_RATIO_BELOW, MAX_SPEED_BELOW
-from ...core.walls import SERVO, walls_advance
-from .detection import contact_geometry, moved_beyond, relist
+from ...core.walls import PISTON, SERVO, walls_advance
+from .detection import IMPULSE_WIDTH, contact_geometry, moved_beyond, relist
 from .solver import apply_impulse, contact_velocity, nlgs
 
 # return codes of advance
@@ -105,13 +109,13 @@ def _bounds(velocities, angular_velocities, radii, materials, lists, wall_materi
             wall_active[q] = on
             wall_bound[q] = b
             if not on:
-                for d in range(3):
+                for d in range(IMPULSE_WIDTH):
                     lists.wall_impulses[q, d] = 0.0
         else:
             active[k] = on
             bound[k] = b
             if not on:
-                for d in range(3):
+                for d in range(IMPULSE_WIDTH):
                     lists.impulses[k, d] = 0.0
     return largest
 
@@ -132,14 +136,30 @@ def contact_slot(k, n, lists, radii, wall_velocity, active, wall_active):
             0.0, 0.0, 0.0)
 
 
+@scalar
+def relative_spin(angular_velocities, i, j):
+    """w_i - w_j [rad/s] (w_i alone against a wall, j < 0)."""
+    w = angular_velocities
+    if j < 0:
+        return w[i, 0], w[i, 1], w[i, 2]
+    return w[i, 0] - w[j, 0], w[i, 1] - w[j, 1], w[i, 2] - w[j, 2]
+
+
+@scalar
+def arm(ri, rj):
+    """The rolling arm R* [m]: R_i R_j / (R_i + R_j), R_i against a wall (r_j = 0)."""
+    return ri if rj == 0.0 else ri * rj / (ri + rj)
+
+
 @kernel
 def _free_and_warm(velocities, angular_velocities, inv_mass, inv_inertia, radii, materials,
                    lists, wall_material, wall_velocity, active, wall_active, friction,
-                   free, wall_free):
-    """Keep the free relative velocities (after gravity, before any impulse) of the
-    active contacts in ``free``/``wall_free`` [m/s] (for the energy split), then apply
+                   rolling, free, wall_free):
+    """Keep the free relative velocities and spins (after gravity, before any impulse)
+    of the active contacts in ``free``/``wall_free`` (for the energy split), then apply
     last step's impulses as the solver's start (warm start): projected on the present
-    normal (compressive part only) and cut to the friction cone mu_s P_n."""
+    normal (compressive part only) and cut to the friction cone mu_s P_n, the couple
+    to the tangent plane and to mu_r R* P_n."""
     n = radii.size
     for k in range(lists.start[n] + lists.wall_start[n]):
         on, wall, slot, i, j, w, rj, vx, vy, vz = contact_slot(
@@ -153,6 +173,8 @@ def _free_and_warm(velocities, angular_velocities, inv_mass, inv_inertia, radii,
         nx, ny, nz = normal[slot, 0], normal[slot, 1], normal[slot, 2]
         store[slot, 0], store[slot, 1], store[slot, 2] = contact_velocity(
             velocities, angular_velocities, i, j, radii[i], rj, nx, ny, nz, vx, vy, vz)
+        store[slot, 3], store[slot, 4], store[slot, 5] = relative_spin(angular_velocities,
+                                                                       i, j)
     for k in range(lists.start[n] + lists.wall_start[n]):
         on, wall, slot, i, j, w, rj, vx, vy, vz = contact_slot(
             k, n, lists, radii, wall_velocity, active, wall_active)
@@ -160,9 +182,11 @@ def _free_and_warm(velocities, angular_velocities, inv_mass, inv_inertia, radii,
             continue
         if wall:
             mu_s = friction[materials[i], wall_material[w], 0]
+            mu_r = rolling[materials[i], wall_material[w]]
             normal, impulses = lists.wall_normal, lists.wall_impulses
         else:
             mu_s = friction[materials[i], materials[j], 0]
+            mu_r = rolling[materials[i], materials[j]]
             normal, impulses = lists.normal, lists.impulses
         nx, ny, nz = normal[slot, 0], normal[slot, 1], normal[slot, 2]
         px, py, pz = impulses[slot, 0], impulses[slot, 1], impulses[slot, 2]
@@ -175,6 +199,21 @@ def _free_and_warm(velocities, angular_velocities, inv_mass, inv_inertia, radii,
         impulses[slot, 0], impulses[slot, 1], impulses[slot, 2] = px, py, pz
         apply_impulse(velocities, angular_velocities, inv_mass, inv_inertia, i, j,
                       radii[i], rj, nx, ny, nz, px, py, pz)
+        cx, cy, cz = impulses[slot, 3], impulses[slot, 4], impulses[slot, 5]
+        cn = cx * nx + cy * ny + cz * nz
+        cx, cy, cz = cx - cn * nx, cy - cn * ny, cz - cn * nz
+        size = math.sqrt(cx * cx + cy * cy + cz * cz)
+        limit = mu_r * arm(radii[i], rj) * pn
+        cut = 1.0 if size <= limit else limit / size
+        cx, cy, cz = cut * cx, cut * cy, cut * cz
+        impulses[slot, 3], impulses[slot, 4], impulses[slot, 5] = cx, cy, cz
+        angular_velocities[i, 0] += inv_inertia[i] * cx
+        angular_velocities[i, 1] += inv_inertia[i] * cy
+        angular_velocities[i, 2] += inv_inertia[i] * cz
+        if j >= 0:
+            angular_velocities[j, 0] -= inv_inertia[j] * cx
+            angular_velocities[j, 1] -= inv_inertia[j] * cy
+            angular_velocities[j, 2] -= inv_inertia[j] * cz
 
 
 @kernel
@@ -193,9 +232,9 @@ def _energy(velocities, angular_velocities, masses, inertias, fixed):
 @kernel
 def _contact_work(velocities, angular_velocities, radii, lists, wall_velocity, active,
                   wall_active, free, wall_free, wall_force, dt):
-    """After the solve: the friction loss -sum P_t . (u_t,free + u_t+)/2 [J], the work of
-    the walls sum P . v_wall [J]; writes the force of the grains on each wall,
-    -sum P / dt [N], into ``wall_force``."""
+    """After the solve: the friction and rolling loss -sum P_t . (u_t,free + u_t+)/2
+    - sum C . (w_r,free + w_r+)/2 [J], the work of the walls sum P . v_wall [J]; writes
+    the force of the grains on each wall, -sum P / dt [N], into ``wall_force``."""
     n = radii.size
     friction_loss = 0.0
     work = 0.0
@@ -220,6 +259,10 @@ def _contact_work(velocities, angular_velocities, radii, lists, wall_velocity, a
         pn = px * nx + py * ny + pz * nz
         friction_loss -= (px - pn * nx) * (ax - an * nx) + (py - pn * ny) * (ay - an * ny) \
             + (pz - pn * nz) * (az - an * nz)
+        sx, sy, sz = relative_spin(angular_velocities, i, j)
+        friction_loss -= 0.5 * (impulses[slot, 3] * (sx + start_speed[slot, 3])
+                                + impulses[slot, 4] * (sy + start_speed[slot, 4])
+                                + impulses[slot, 5] * (sz + start_speed[slot, 5]))
         if wall:
             work += px * vx + py * vy + pz * vz
             wall_force[w, 0] -= px / dt
@@ -306,16 +349,33 @@ def _stop(velocities, angular_velocities, positions, masses, inertias, fixed, gr
 
 
 @kernel
-def _servo_rows(walls, t):
-    """The servo rows of the step ending at ``t`` [s] (solver.servo_velocity): the servo
-    walls whose motion has started, with the velocity walls_advance moved them at."""
+def _solved_rows(walls, t, dt):
+    """The rows of the walls solved with the impulses in the step ending at ``t`` [s]
+    (solver.solved_velocity), with the velocity walls_advance moved them at: the servo
+    walls and pistons whose motion has started.  A piston's free speed undoes the
+    grains' force of the last step that walls_advance applied: s_free = v . u + dt F / M,
+    F = -force . u."""
     for w in range(walls.motion_kind.size):
-        on = walls.motion_kind[w] == SERVO and t > walls.motion[w, 7]
-        walls.servo[w, 0] = 1.0 if on else 0.0
-        for c in range(6):
-            walls.servo[w, 1 + c] = walls.motion[w, c]
+        kind = walls.motion_kind[w]
+        started = t > walls.motion[w, 7]
+        walls.solved[w, 0] = 0.0
+        if started and kind == SERVO:
+            walls.solved[w, 0] = 1.0
+            for c in range(3):
+                walls.solved[w, 4 + c] = walls.motion[w, 3 + c]
+        elif started and kind == PISTON:
+            walls.solved[w, 0] = 2.0
+            speed = 0.0
+            push = 0.0
+            for d in range(3):
+                speed += walls.velocity[w, d] * walls.motion[w, d]
+                push -= walls.force[w, d] * walls.motion[w, d]
+            walls.solved[w, 4] = speed + dt * push / walls.motion[w, 8]
+            walls.solved[w, 5] = 1.0 / walls.motion[w, 8]
+            walls.solved[w, 6] = 0.0
         for d in range(3):
-            walls.servo[w, 7 + d] = walls.velocity[w, d]
+            walls.solved[w, 1 + d] = walls.motion[w, d]
+            walls.solved[w, 7 + d] = walls.velocity[w, d]
 
 
 @kernel
@@ -350,7 +410,7 @@ def advance(grains, lists, walls, periodic, tables, work, clock, counters, nstep
                          walls.kind, walls.geometry, walls.offset)
         walls_advance(walls.motion_kind, walls.motion, walls.base, walls.offset,
                       walls.velocity, walls.force, clock[TIME], dt)
-        _servo_rows(walls, clock[TIME] + dt)
+        _solved_rows(walls, clock[TIME] + dt, dt)
         scale = _bounds(velocities, spins, grains.radii, grains.materials, lists,
                         walls.material, walls.velocity, tables.restitution, clock,
                         work.active, work.wall_active, work.bound, work.wall_bound)
@@ -363,18 +423,20 @@ def advance(grains, lists, walls, periodic, tables, work, clock, counters, nstep
                     velocities[i, d] += dt * gravity[d]
         _free_and_warm(velocities, spins, grains.inv_mass, grains.inv_inertia, grains.radii,
                        grains.materials, lists, walls.material, walls.velocity, work.active,
-                       work.wall_active, tables.friction, work.free, work.wall_free)
+                       work.wall_active, tables.friction, tables.rolling, work.free,
+                       work.wall_free)
         g = math.sqrt(gravity[0] ** 2 + gravity[1] ** 2 + gravity[2] ** 2)
         sweeps, residual = nlgs(velocities, spins, grains.inv_mass, grains.inv_inertia,
                                 grains.radii, grains.materials, lists, walls.material,
                                 walls.velocity, work.active, work.wall_active, work.bound,
-                                work.wall_bound, tables.friction, clock[TOLERANCE],
-                                counters[MAX_ITERATIONS], max(scale, g * dt), walls.servo,
+                                work.wall_bound, tables.friction, tables.rolling,
+                                clock[TOLERANCE],
+                                counters[MAX_ITERATIONS], max(scale, g * dt), walls.solved,
                                 walls.push, dt)
-        for w in range(walls.servo.shape[0]):      # servo walls: moved at the solved speed
-            if walls.servo[w, 0] > 0.0:
+        for w in range(walls.solved.shape[0]):      # solved walls: moved at the solved speed
+            if walls.solved[w, 0] > 0.0:
                 for d in range(3):
-                    walls.offset[w, d] += (walls.velocity[w, d] - walls.servo[w, 7 + d]) * dt
+                    walls.offset[w, d] += (walls.velocity[w, d] - walls.solved[w, 7 + d]) * dt
         counters[ITERATIONS] = sweeps
         counters[TOTAL_ITERATIONS] += sweeps
         clock[RESIDUAL] = residual

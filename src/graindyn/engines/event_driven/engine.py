@@ -75,6 +75,8 @@ class EventDriven:
     cell crossings and stale ones included); ``step`` is ``events``.
     """
 
+    rigid = True        # hard grains (engine.Engine.rigid)
+
     def __init__(self, state, materials, walls=(), periodic=(), gravity=(0.0, 0.0, -9.81),
                  tangential_restitution=1.0, collapse="none", collapse_speed=None,
                  contact_duration=None, tolerance=1e-9, sync_interval=None):

@@ -86,6 +86,8 @@ class Simulation:
       uninterrupted one (same thread count).
     """
 
+    rigid = False        # soft grains (engine.Engine.rigid)
+
     def __init__(self, state, materials, model=None, walls=(), periodic=(),
                  gravity=(0.0, 0.0, -9.81), dt=None, skin=None, integrator="velocity_verlet",
                  allow_large_dt=False, overlap_limit=0.2, check_interval=100, backend="cpu",
