@@ -19,6 +19,17 @@ def one_thread():
     numba.set_num_threads(before)
 
 
+_EARLY = []          # the modules whose jobs started at collection
+
+
+@pytest.fixture
+def quiet_machine():
+    """Wait for every job started at collection (pytest_collection_modifyitems): for
+    tests that time the machine's cores."""
+    for module in _EARLY:
+        module.wait_early()
+
+
 def pytest_collection_modifyitems(config, items):
     """Test modules with a ``start_early()`` (slow jobs in subprocesses: the CUDA
     simulator's) have it called once collection is done, and their tests run last: the
@@ -29,5 +40,6 @@ def pytest_collection_modifyitems(config, items):
         return
     for module in {item.module for item in early}:
         module.start_early()
+        _EARLY.append(module)
     chosen = set(map(id, early))
     items[:] = [item for item in items if id(item) not in chosen] + early

@@ -11,6 +11,9 @@ import pytest
 
 from graindyn import _jit, _threads
 
+# these tests time the cores: the jobs other tests started in the background end first
+pytestmark = pytest.mark.usefixtures("quiet_machine")
+
 
 def _python(code, **env):
     """Run ``code`` in a fresh interpreter with ``env`` added; returns the process."""

@@ -73,6 +73,12 @@ def start_early():
     atexit.register(_stop)
 
 
+def wait_early():
+    """Wait for every started job to end (tests/conftest.py quiet_machine)."""
+    for proc in _STARTED.get("procs", {}).values():
+        proc.wait(timeout=1200)
+
+
 def _stop():
     """Kill the jobs still running and remove their folder (at the module's end, or at
     exit when a run stops before it)."""

@@ -132,7 +132,7 @@ def test_quarter_deposition_reports_its_settling_history(tmp_path):
                       echo=lambda *a: None)
     history = results["history"]
     times = [r["time_s"] for r in history]
-    assert len(history) > 20 and times == sorted(times)
+    assert len(history) > 10 and times == sorted(times)
     last = history[-1]
     assert last["time_s"] == pytest.approx(results["time_s"])
     assert last["coordination"] == pytest.approx(results["coordination_number"])

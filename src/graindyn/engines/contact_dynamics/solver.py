@@ -107,17 +107,40 @@ def local_solve(ux, uy, uz, nx, ny, nz, px, py, pz, bound, wnn, wtt, mu_s, mu_d)
 
 
 @scalar
+def relative_spin(angular_velocities, i, j):
+    """w_i - w_j [rad/s] (w_i alone against a wall, j < 0)."""
+    w = angular_velocities
+    if j < 0:
+        return w[i, 0], w[i, 1], w[i, 2]
+    return w[i, 0] - w[j, 0], w[i, 1] - w[j, 1], w[i, 2] - w[j, 2]
+
+
+@scalar
+def arm(ri, rj):
+    """The rolling arm R* [m]: R_i R_j / (R_i + R_j), R_i against a wall (r_j = 0)."""
+    return ri if rj == 0.0 else ri * rj / (ri + rj)
+
+
+@scalar
+def apply_couple(angular_velocities, inv_inertia, i, j, cx, cy, cz):
+    """Add the couple impulse C [N m s] on grain i (-C on grain j when j >= 0):
+    dw = C / I."""
+    w = angular_velocities
+    w[i, 0] += inv_inertia[i] * cx
+    w[i, 1] += inv_inertia[i] * cy
+    w[i, 2] += inv_inertia[i] * cz
+    if j >= 0:
+        w[j, 0] -= inv_inertia[j] * cx
+        w[j, 1] -= inv_inertia[j] * cy
+        w[j, 2] -= inv_inertia[j] * cz
+
+
+@scalar
 def _roll(angular_velocities, inv_inertia, i, j, nx, ny, nz, impulses, k, limit):
     """The rolling couple impulse of contact k (module docstring) with the others fixed,
     |C| <= ``limit`` [N m s]; the spins updated at once.  Returns (|dC|, |C|) [N m s]."""
-    wrr = inv_inertia[i]
-    w = angular_velocities
-    rx, ry, rz = w[i, 0], w[i, 1], w[i, 2]
-    if j >= 0:
-        wrr += inv_inertia[j]
-        rx -= w[j, 0]
-        ry -= w[j, 1]
-        rz -= w[j, 2]
+    wrr = inv_inertia[i] + (inv_inertia[j] if j >= 0 else 0.0)
+    rx, ry, rz = relative_spin(angular_velocities, i, j)
     if wrr == 0.0:
         return 0.0, 0.0
     cx, cy, cz = impulses[k, 3], impulses[k, 4], impulses[k, 5]
@@ -131,13 +154,7 @@ def _roll(angular_velocities, inv_inertia, i, j, nx, ny, nz, impulses, k, limit)
     qx, qy, qz = scale * sx, scale * sy, scale * sz
     impulses[k, 3], impulses[k, 4], impulses[k, 5] = qx, qy, qz
     dx, dy, dz = qx - cx, qy - cy, qz - cz
-    w[i, 0] += inv_inertia[i] * dx
-    w[i, 1] += inv_inertia[i] * dy
-    w[i, 2] += inv_inertia[i] * dz
-    if j >= 0:
-        w[j, 0] -= inv_inertia[j] * dx
-        w[j, 1] -= inv_inertia[j] * dy
-        w[j, 2] -= inv_inertia[j] * dz
+    apply_couple(angular_velocities, inv_inertia, i, j, dx, dy, dz)
     return math.sqrt(dx * dx + dy * dy + dz * dz), math.sqrt(qx * qx + qy * qy + qz * qz)
 
 

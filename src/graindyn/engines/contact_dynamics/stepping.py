@@ -48,7 +48,8 @@ from ..._jit import kernel, scalar
 from ...core.triggers import ENERGY_RATIO_BELOW, MAX_SPEED_BELOW
 from ...core.walls import PISTON, SERVO, walls_advance
 from .detection import IMPULSE_WIDTH, contact_geometry, moved_beyond, relist
-from .solver import apply_impulse, contact_velocity, nlgs
+from .solver import (apply_couple, apply_impulse, arm, contact_velocity, nlgs,
+                     relative_spin)
 
 # return codes of advance
 DONE, CONDITION, GROW, NAN = 0, 1, 2, 3
@@ -136,21 +137,6 @@ def contact_slot(k, n, lists, radii, wall_velocity, active, wall_active):
             0.0, 0.0, 0.0)
 
 
-@scalar
-def relative_spin(angular_velocities, i, j):
-    """w_i - w_j [rad/s] (w_i alone against a wall, j < 0)."""
-    w = angular_velocities
-    if j < 0:
-        return w[i, 0], w[i, 1], w[i, 2]
-    return w[i, 0] - w[j, 0], w[i, 1] - w[j, 1], w[i, 2] - w[j, 2]
-
-
-@scalar
-def arm(ri, rj):
-    """The rolling arm R* [m]: R_i R_j / (R_i + R_j), R_i against a wall (r_j = 0)."""
-    return ri if rj == 0.0 else ri * rj / (ri + rj)
-
-
 @kernel
 def _free_and_warm(velocities, angular_velocities, inv_mass, inv_inertia, radii, materials,
                    lists, wall_material, wall_velocity, active, wall_active, friction,
@@ -207,13 +193,7 @@ def _free_and_warm(velocities, angular_velocities, inv_mass, inv_inertia, radii,
         cut = 1.0 if size <= limit else limit / size
         cx, cy, cz = cut * cx, cut * cy, cut * cz
         impulses[slot, 3], impulses[slot, 4], impulses[slot, 5] = cx, cy, cz
-        angular_velocities[i, 0] += inv_inertia[i] * cx
-        angular_velocities[i, 1] += inv_inertia[i] * cy
-        angular_velocities[i, 2] += inv_inertia[i] * cz
-        if j >= 0:
-            angular_velocities[j, 0] -= inv_inertia[j] * cx
-            angular_velocities[j, 1] -= inv_inertia[j] * cy
-            angular_velocities[j, 2] -= inv_inertia[j] * cz
+        apply_couple(angular_velocities, inv_inertia, i, j, cx, cy, cz)
 
 
 @kernel
