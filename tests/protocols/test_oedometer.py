@@ -276,3 +276,27 @@ def test_interrupted_oedometer_resumes_to_the_same_numbers(oedometer, tmp_path):
     assert proc.returncode == 0, out
     resumed = json.loads((run / "results.json").read_text())
     assert resumed["ladder"] == json.loads((finished / "results.json").read_text())["ladder"]
+
+
+def test_oedometer_of_rigid_grains_holds_every_level_and_recovers_nothing(tmp_path):
+    """SMALL, 50 grains, on the contact dynamics engine (rigid grains, e_n = 0.3): at rest at every
+    level, the piston carrying its target and the bottom plus side friction the piston
+    plus the weight; no contact compresses, so the sample does not rebound when
+    unloaded: the void ratio after unloading is no larger than at the peak (to 1e-6)."""
+    data = copy.deepcopy(SMALL)
+    data["materials"] = [{"name": "sand", "restitution": 0.3, "friction_sliding": 0.4,
+                          "friction_static": 0.4}]
+    data["grains"]["count"] = 50
+    data["engine"] = {"kind": "contact_dynamics", "dt": 5e-5}
+    results = execute(validate(data), tmp_path / "run", show_progress=False,
+                      echo=lambda *a: None)
+    rows = results["ladder"]
+    assert all(r["at_rest"] for r in rows), [(r["target_Pa"], r["sigma_top_Pa"]) for r in rows]
+    area = np.pi * 2.5e-3**2
+    for r in rows:
+        assert r["sigma_top_Pa"] == pytest.approx(r["target_Pa"], rel=0.01)
+        assert r["sigma_bottom_Pa"] * area + r["side_friction_N"] == pytest.approx(
+            r["sigma_top_Pa"] * area + r["weight_N"], rel=0.01)
+        assert r["elastic_J"] == 0.0
+    e = [r["void_ratio"] for r in rows]
+    assert e[3] <= e[2] * (1 + 1e-6) and e[4] <= e[2] * (1 + 1e-6), e
