@@ -462,30 +462,45 @@ def wall_row(i, model, params, positions, velocities, angular_velocities, radii,
 
 
 @scalar
+def store_lanes(work, count, slots, history, force, torque, own, share):
+    """Put the law's outputs for the ``count`` contacts of ``work`` where they belong:
+    the force and torque of contact slots[0, s] into ``force``/``torque`` and added to
+    own of its grain slots[1, s], its history back into ``history``.  Returns ``share``
+    times the normal and tangential energy they dissipated [J] (1 for walls, 1/2 for
+    the image contacts each grain of a mirrored pair counts), their largest overlap /
+    smaller radius (RATIO) and how many of them start (touch)."""
+    lost_n = 0.0
+    lost_t = 0.0
+    worst = 0.0
+    started = 0
+    for s in range(count):
+        q = slots[0, s]
+        i = slots[1, s]
+        worst = max(worst, work[RATIO * STRIDE + s])
+        for d in range(3):
+            f = work[(OUTPUT + d) * STRIDE + s]
+            t = work[(OUTPUT + 3 + d) * STRIDE + s]
+            force[q, d] = f
+            torque[q, d] = t
+            own[i, d] += f
+            own[i, 3 + d] += t
+        for h in range(history.shape[1]):
+            history[q, h] = work[(HISTORY + h) * STRIDE + s]
+        started += touch(history, q)
+        lost_n += share * work[(OUTPUT + 9) * STRIDE + s]
+        lost_t += share * work[(OUTPUT + 10) * STRIDE + s]
+    return lost_n, lost_t, worst, started
+
+
+@scalar
 def _flush_walls(law, work, count, slots, wall_history, wall_force, wall_torque, own, dt):
     """Evaluate the law on the ``count`` wall contacts gathered in ``work``, store
     their forces, torques and histories and add them to own (their grains are in the
     block, slots[1]); returns the normal and tangential energy dissipated [J] and how
     many of them start (touch: collisions)."""
     call_law(law, work, whole_lanes(count), dt, np.int64(0))
-    lost_n = 0.0
-    lost_t = 0.0
-    started = 0
-    for s in range(count):
-        q = slots[0, s]
-        i = slots[1, s]
-        for d in range(3):
-            f = work[(OUTPUT + d) * STRIDE + s]
-            torque = work[(OUTPUT + 3 + d) * STRIDE + s]
-            wall_force[q, d] = f
-            wall_torque[q, d] = torque
-            own[i, d] += f
-            own[i, 3 + d] += torque
-        for h in range(wall_history.shape[1]):
-            wall_history[q, h] = work[(HISTORY + h) * STRIDE + s]
-        started += touch(wall_history, q)
-        lost_n += work[(OUTPUT + 9) * STRIDE + s]
-        lost_t += work[(OUTPUT + 10) * STRIDE + s]
+    lost_n, lost_t, _, started = store_lanes(work, count, slots, wall_history, wall_force,
+                                             wall_torque, own, 1.0)
     return lost_n, lost_t, started
 
 

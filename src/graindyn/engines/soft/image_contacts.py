@@ -23,9 +23,9 @@ import numpy as np
 
 from ..._jit import block, parallel, prange, scalar
 from ...core.symmetry import MASKS, image_separation, mirror_sign, spin_sign
-from .contacts import block_total, keep_worst, opened, stage_table, touch, whole_lanes
-from .law_loop import (CAP, DVX, FIXED_I, FIXED_J, HISTORY, M_I, M_J, OUTPUT, R_I, R_J, RATIO,
-                       STRIDE, SX, SY, SZ, W_I, W_J, call_law)
+from .contacts import block_total, keep_worst, opened, stage_table, store_lanes, whole_lanes
+from .law_loop import (CAP, DVX, FIXED_I, FIXED_J, M_I, M_J, R_I, R_J, STRIDE, SX, SY, SZ,
+                       W_I, W_J, call_law)
 
 
 @scalar
@@ -63,27 +63,7 @@ def _flush_images(law, work, count, slots, params, velocities, angular_velocitie
     _fill_images(count, work, slots, params, velocities, angular_velocities, radii, masses,
                  materials, fixed, history)
     call_law(law, work, whole_lanes(count), dt, np.int64(1))
-    lost_n = 0.0
-    lost_t = 0.0
-    worst = 0.0
-    started = 0
-    for s in range(count):
-        q = slots[0, s]
-        i = slots[1, s]
-        worst = max(worst, work[RATIO * STRIDE + s])
-        for d in range(3):
-            f = work[(OUTPUT + d) * STRIDE + s]
-            t = work[(OUTPUT + 3 + d) * STRIDE + s]
-            force[q, d] = f
-            torque[q, d] = t
-            own[i, d] += f
-            own[i, 3 + d] += t
-        for h in range(history.shape[1]):
-            history[q, h] = work[(HISTORY + h) * STRIDE + s]
-        started += touch(history, q)
-        lost_n += 0.5 * work[(OUTPUT + 9) * STRIDE + s]
-        lost_t += 0.5 * work[(OUTPUT + 10) * STRIDE + s]
-    return lost_n, lost_t, worst, started
+    return store_lanes(work, count, slots, history, force, torque, own, 0.5)
 
 
 @block
