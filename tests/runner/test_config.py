@@ -283,3 +283,20 @@ def test_the_contact_laws_are_checked_only_for_an_engine_that_reads_them():
     raw["engine"] = {"kind": "soft"}
     with pytest.raises(ConfigError, match="damping 'tsuji' needs restitution"):
         check(validate(raw))
+
+
+def test_rigid_grains_read_their_materials_friction_without_a_warning(write_config):
+    """examples/oedometer_rigid.toml (contact dynamics: no [contact] laws) sets
+    friction_static, which the soft engine's default laws would not read: no warning,
+    and `graindyn validate` names what rigid grains read instead of the laws."""
+    raw = load("examples/oedometer_rigid.toml").model_dump(exclude_none=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        validate(raw)
+    result = runner.invoke(app, ["validate", "examples/oedometer_rigid.toml"])
+    assert result.exit_code == 0, result.output
+    assert "contact: the materials' restitution and friction (rigid grains" in result.output
+    raw["engine"] = {"kind": "soft"}
+    raw["materials"] = [{**m, "youngs_modulus": 1e9} for m in raw["materials"]]
+    with pytest.warns(UserWarning, match="friction_static set but not read"):
+        validate(raw)

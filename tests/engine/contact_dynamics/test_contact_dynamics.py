@@ -194,6 +194,25 @@ def test_snapshot_and_restore_resume_to_the_bit():
         np.testing.assert_array_equal(first[name], second[name], err_msg=name)
 
 
+def test_a_snapshot_of_three_column_impulses_restores_with_zero_couples():
+    """A snapshot written before rolling resistance (impulses of 3 columns, no couple)
+    restores: the impulses come back with zero couples and the run goes on as the
+    present snapshot's does (the pile has no rolling friction, so no couple arises)."""
+    e = _pile()
+    e.run(time=0.01)
+    saved = e.snapshot()
+    assert not np.any(saved["lists/impulses"][:, 3:])
+    old = {k: (v[:, :3] if k in ("lists/impulses", "lists/wall_impulses") else v)
+           for k, v in saved.items()}
+    again, present = _pile(), _pile()
+    again.restore(old)
+    present.restore(saved)
+    np.testing.assert_array_equal(again.lists.impulses, present.lists.impulses)
+    again.run(time=0.005)
+    present.run(time=0.005)
+    np.testing.assert_array_equal(again.state.positions, present.state.positions)
+
+
 def test_a_step_that_does_not_converge_is_reported():
     """With one NLGS sweep allowed a column cannot converge: the run warns and counts
     the steps (not_converged), the residual above the tolerance."""
