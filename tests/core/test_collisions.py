@@ -502,7 +502,7 @@ def _oblique(tangential, theta_deg, e_n=TEST4_E, limit_damping=False, record=Fal
 
 
 @pytest.mark.parametrize("tangential", ["coulomb", "cundall_strack", "mindlin", "karrech",
-                                        "oquendo"])
+                                        "oquendo", "oquendo_literal"])
 @pytest.mark.parametrize("theta", [40.0, 50.0, 60.0])
 def test_b3_gross_sliding(tangential, theta):
     """B3: in gross sliding (|u0| = v_t > (7/2) mu (1+e) v_n for theta > 32.5 deg),
@@ -518,7 +518,7 @@ def test_b3_gross_sliding(tangential, theta):
 
 
 @pytest.mark.parametrize("tangential", ["coulomb", "cundall_strack", "mindlin", "karrech",
-                                        "oquendo"])
+                                        "oquendo", "oquendo_literal"])
 def test_b3_friction_opposes_slip_when_normal_force_pulls(tangential):
     """Coulomb's law: the friction force never has a component along the slip and the
     tangential dissipation never decreases, also in the attractive tail of an

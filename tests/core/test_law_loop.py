@@ -17,6 +17,7 @@ from graindyn.engines.soft.law_loop import prepare, workspace
 
 MODELS = [("hertz", "tsuji", "mindlin"), ("hooke", "linear", "cundall_strack"),
           ("hertz", "viscoelastic", "oquendo", "none", "oquendo"),
+          ("hertz", "viscoelastic", "oquendo_literal", "none", "oquendo"),
           ("hertz", "karrech", "karrech"), ("hertz", "tsuji", "coulomb", "epsd", "epsd"),
           ("walton_braun", "none", "mindlin", "constant", "constant")]
 MATERIAL = dict(youngs_modulus=1e7, restitution=0.7, kn=2e3, kt=1e3, friction_sliding=0.4,
@@ -165,7 +166,7 @@ def test_open_pair_with_only_a_stale_torque_is_cleared(one_thread):
     assert np.all(p.torque_j[k] == 0.0)
 
 
-@pytest.mark.parametrize("model", MODELS[:3], ids=lambda m: ",".join(m))
+@pytest.mark.parametrize("model", MODELS[:4], ids=lambda m: ",".join(m))
 def test_batched_walls_equal_contact_by_contact(model, one_thread):
     """The wall contacts through the same law loop (contacts._wall_block) against
     wall_row, one contact after the other: forces, torques and histories to the bit,

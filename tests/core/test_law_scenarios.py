@@ -88,6 +88,14 @@ def _slope(t, y, lo, hi):
 
 # ------------------------------------------------------------------ Oquendo
 OQUENDO = gd.ContactModel("hertz", "tsuji", "oquendo", twisting="oquendo")
+# the literal reading (tangential_oquendo_literal_force): the same scenarios hold, at a
+# step whose kinetic kick mu_k g dt (1 + m R^2/I) stays below the slip threshold (its
+# regimes are not resolved otherwise, docs/contact_laws.md)
+READINGS = [OQUENDO, gd.ContactModel("hertz", "tsuji", "oquendo_literal", twisting="oquendo")]
+
+
+def _literal_dt(model):
+    return 1e-6 if model.tangential == "oquendo_literal" else None
 MU_K, MU_S = 0.3, 0.4
 
 
@@ -102,9 +110,10 @@ def _oquendo_material_in(dim, **kw):
     return _oquendo_material(**kw) if dim == 3 else _oquendo_material(density=RHO * R, **kw)
 
 
+@pytest.mark.parametrize("model", READINGS, ids=lambda m: m.tangential)
 @pytest.mark.parametrize("dim", [3, 2])
 @pytest.mark.parametrize("tan_theta_r", [0.0, 0.02])
-def test_oquendo_sliding_then_rolling(tan_theta_r, dim):
+def test_oquendo_sliding_then_rolling(tan_theta_r, dim, model):
     """A grain launched at v0 without spin slides with dv/dt = -mu_k g (Eq. 5) while
     friction spins it up at mu_k g m R/I, until t* = v0/(mu_k g (1 + m R^2/I)); then
     it rolls at v0/(1 + I/(m R^2)) and slows at tan(theta_r) g/(1 + I/(m R^2)), the
@@ -112,8 +121,8 @@ def test_oquendo_sliding_then_rolling(tan_theta_r, dim):
     (2D: 2/3 v0).  The mechanical energy never increases."""
     v0 = 0.5
     shape = 0.4 if dim == 3 else 0.5
-    sim, h = _resting(_oquendo_material_in(dim, friction_rolling=tan_theta_r), OQUENDO,
-                      v=(v0, 0, 0), dim=dim)
+    sim, h = _resting(_oquendo_material_in(dim, friction_rolling=tan_theta_r), model,
+                      v=(v0, 0, 0), dim=dim, dt=_literal_dt(model))
     t_star = v0 / (MU_K * G * (1 + 1 / shape))
     rec = _record(sim, int(2.5 * t_star / sim.dt))
     # rolling spin: +y for a sphere on the plane z = 0, -z for a disk on y = 0
@@ -155,6 +164,32 @@ def test_oquendo_incline_sticks_below_static_angle(ratio, sticks, dim):
     m, h = sim.state.masses[0], R - sim.state.positions[0, dim - 1]
     kt = 8 * G_STAR * math.sqrt(R * h)
     _never_gains(rec[:, -1], (MU_S * m * G) ** 2 / (2 * kt), rel=1e-2)
+
+
+@pytest.mark.parametrize("dim", [3, 2])
+@pytest.mark.parametrize("ratio,sticks", [(0.8, True), (1.2, False)])
+def test_oquendo_literal_incline_creeps_below_static_angle(ratio, sticks, dim):
+    """The literal reading's static friction (Eq. 10) has no memory: it cancels the pull
+    it reads from the last step's slip, f = -m_t v_t/(2 dt), m_t = m beta/(1 + beta)
+    (velocity Verlet: one evaluation a step).  A grain held on an incline below
+    atan(mu_s) therefore creeps at the steady speed where that force equals the pull
+    m g sin(theta): v = 2 g sin(theta) dt (1 + beta)/beta, below the slip threshold at
+    this step (rotation locked: the slip is the grain's velocity); above atan(mu_s) it
+    slides with g (sin - mu_k cos)."""
+    tilt = math.atan(ratio * MU_S)
+    sim, _ = _resting(_oquendo_material_in(dim), READINGS[1], tilt=tilt, lock=True, dim=dim,
+                      dt=2.5e-7)
+    rec = _record(sim, int(0.02 / sim.dt), every=100)
+    t, v = rec[:, 0], rec[:, 2]
+    beta = 0.4 if dim == 3 else 0.5
+    if sticks:
+        creep = 2 * G * math.sin(tilt) * sim.dt * (1 + beta) / beta
+        assert creep < 1e-5                     # below the slip threshold
+        assert v[t > 0.005] == pytest.approx(creep, rel=1e-3)
+    else:
+        assert _slope(t, v, 0.005, 0.02) == pytest.approx(
+            G * (math.sin(tilt) - MU_K * math.cos(tilt)), rel=1e-2)
+    _never_gains(rec[:, -1], 0.5 * sim.state.masses[0] * (G * 0.02) ** 2, rel=1e-6)
 
 
 def test_oquendo_twisting_decay_rate():

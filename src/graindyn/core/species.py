@@ -151,20 +151,24 @@ class ContactModel:
         if self.normal.startswith("walton_braun") and self.damping != "none":
             raise ValueError(f"normal law {self.normal!r} dissipates through its unloading "
                              "spring: use damping 'none'")
-        if self.tangential == "oquendo" and self.rolling != "none":
-            raise ValueError("tangential law 'oquendo' has its own rolling friction "
+        if self.tangential.startswith("oquendo") and self.rolling != "none":
+            raise ValueError(f"tangential law {self.tangential!r} has its own rolling friction "
                              "(friction_rolling = tan theta_r): use rolling 'none'")
         if self.damping == "linear" and self.normal != "hooke":
             raise ValueError("damping 'linear' goes with normal 'hooke' (its restitution is "
                              "exact only for the linear spring)")
 
-    def pair_table(self, materials) -> np.ndarray:
-        """params[i, j, column] for every pair of materials, mixed and overridden."""
+    def pair_table(self, materials, dim: int = 3) -> np.ndarray:
+        """params[i, j, column] for every pair of materials, mixed and overridden;
+        ``dim`` sets the grains' inertia ratio I/(m R^2) (2/5 spheres, 1/2 disks)."""
         from ..physics.reference import linear_damping_ratio, tsuji_alpha
 
         self.check(materials)
         k = len(materials)
+        if dim not in (2, 3):
+            raise ValueError(f"dim must be 2 or 3, not {dim!r}")
         table = np.zeros((k, k, NCOL))
+        table[:, :, COL["inertia_ratio"]] = 0.4 if dim == 3 else 0.5
         for i, a in enumerate(materials):
             for j, b in enumerate(materials):
                 row = table[i, j]

@@ -19,6 +19,7 @@ from .registry import (COL, DAMPING, HISTORY, LIMIT_DAMPING, NORMAL, ROLLING, TA
 from .rolling import rolling_constant_torque
 from .tangential import (tangential_coulomb_force, tangential_mindlin_rescale,
                          tangential_mindlin_stiffness, tangential_oquendo_force,
+                         tangential_oquendo_literal_force,
                          tangential_spring_energy, tangential_spring_force)
 from .twisting import twisting_constant_torque, twisting_oquendo_torque, twisting_spring_torque
 
@@ -35,6 +36,7 @@ _CUNDALL = TANGENTIAL["cundall_strack"]
 _MINDLIN = TANGENTIAL["mindlin"]
 _KARRECH = TANGENTIAL["karrech"]
 _OQUENDO = TANGENTIAL["oquendo"]
+_OQUENDO_LITERAL = TANGENTIAL["oquendo_literal"]
 _ROLL_NONE = ROLLING["none"]
 _ROLL_CONSTANT = ROLLING["constant"]
 _ROLL_EPSD = ROLLING["epsd"]
@@ -69,6 +71,7 @@ _C_ROLL = COL["rolling_damping"]
 _MU_TW = COL["friction_twisting"]
 _K_TW = COL["twisting_stiffness"]
 _C_TW = COL["twisting_damping"]
+_BETA_I = COL["inertia_ratio"]
 
 
 @scalar
@@ -140,7 +143,8 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
     # rolling part of the relative rotation (tangent-plane component) and twist rate,
     # for the laws that use them
     wn = wrx = wry = wrz = 0.0
-    if tangential == _OQUENDO or model[3] != _ROLL_NONE or model[4] != _TWIST_NONE:
+    if tangential == _OQUENDO or tangential == _OQUENDO_LITERAL or model[3] != _ROLL_NONE \
+            or model[4] != _TWIST_NONE:
         wn = wx * nx + wy * ny + wz * nz
         wrx = wx - wn * nx
         wry = wy - wn * ny
@@ -176,6 +180,17 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
                     params[prow(a, b, _MU_R)] * r_roll * cap, wrx, wry, wrz, dt)
                 dissipated_t += lost_r
         dissipated_t += lost_t
+    elif tangential == _OQUENDO_LITERAL:
+        mu_r = params[prow(a, b, _MU_R)]
+        ftx, fty, ftz, dissipated_t, regime = tangential_oquendo_literal_force(
+            params[prow(a, b, _MU)], params[prow(a, b, _MU_S)], mu_r,
+            params[prow(a, b, _SLIP)], params[prow(a, b, _BETA_I)],
+            cap, r_roll, m_eff, nx, ny, nz, vtx, vty, vtz,
+            wrx, wry, wrz, history, k, ht, dt)
+        if regime == 2.0:       # rolling: the couple of Eq. 8-9 (see the law)
+            mx, my, mz, lost_r = rolling_constant_torque(mu_r * r_roll * cap, wrx, wry, wrz,
+                                                         dt)
+            dissipated_t += lost_r
     else:
         ftx = fty = ftz = dissipated_t = 0.0
     rolling = model[3]

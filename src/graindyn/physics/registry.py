@@ -66,6 +66,9 @@ COLUMNS = (
            "twisting friction coefficient: limit torque mu_tw a |f_n|, a = sqrt(R* xi)"),
     Column("twisting_stiffness", "N m/rad", 0.0, 1e15, "EPSD twisting spring"),
     Column("twisting_damping", "N m s", 0.0, 1e15, "EPSD twisting dashpot"),
+    Column("inertia_ratio", "-", 0.0, 1.0,
+           "I/(m R^2) of the grains' shape, 2/5 spheres, 1/2 disks (Oquendo Eq. 8-9); "
+           "set from the dimension, not mixed"),
 )
 COL = {c.name: k for k, c in enumerate(COLUMNS)}
 NCOL = len(COLUMNS)
@@ -100,6 +103,11 @@ LAWS = (
     Law("tangential", "oquendo", ("shear_eff", "tangential_damping", "friction_sliding",
                                   "friction_static", "friction_rolling", "slip_threshold"), 7,
         "Oquendo Eq. 4-10: sliding mu_k, rolling tan(theta_r), static mu_s"),
+    Law("tangential", "oquendo_literal", ("friction_sliding", "friction_static",
+                                          "friction_rolling", "slip_threshold",
+                                          "inertia_ratio"), 4,
+        "Oquendo Eq. 4-10 read literally: sliding mu_k, or rolling with the force of "
+        "Eq. 8, or static friction cancelling the pull (Eq. 10), one at a time"),
     Law("rolling", "none", (), 0, "no rolling resistance"),
     Law("rolling", "constant", ("friction_rolling",), 0,
         "type A (Ai et al. 2011): M = -mu_r R* |f_n| w_r/|w_r|"),

@@ -186,3 +186,74 @@ def tangential_oquendo_force(kt, eta_t, mu_k, mu_s, threshold, fresh, fn, nx, ny
     history[hrow(k, h + 6)] = vtz
     fx, fy, fz, work = tangential_coulomb_force(mu_k, fn, vtx, vty, vtz, dt)
     return fx, fy, fz, work + lost, 1.0
+
+
+@scalar
+def tangential_oquendo_literal_force(mu_k, mu_s, tan_theta_r, threshold, inertia_ratio,
+                                     fn, r_roll, m_eff, nx, ny, nz, vtx, vty, vtz,
+                                     wrx, wry, wrz, history, k, h, dt):
+    """Oquendo Eq. 4-10 read literally: three regimes that exclude each other.
+
+    Sliding (|v_t| > threshold): f = -mu_k |f_n| v_t/|v_t| (Eq. 5).  In one step the
+    slip of a sliding contact may jump across zero and beyond the threshold: it has
+    passed through rest, so the contact is caught by static friction (below) until
+    |v_t| is back under the threshold (history[hrow(k, h:h+3)] holds the slip of the
+    last sliding step, zero otherwise; history[hrow(k, h+3)] is 2 while catching).
+    Rolling (not sliding, |v_r| > threshold, v_r = R'_ij w_r x n, Eq. 7): the force of
+    Eq. 8, f = -|f_n| tan(theta_r)/(1 + beta) t with t = v_r/|v_r| and
+    beta = I/(m R^2) = ``inertia_ratio`` (2/5 spheres, 1/2 disks), at the contact point,
+    and the caller adds the couple M = -R'_ij |f_n| tan(theta_r) w_r/|w_r|
+    (physics.rolling.rolling_constant_torque): with the lever torque of f the total
+    torque on a grain rolling on a plane is Eq. 9.  Nothing else resists the slip in
+    this regime.
+    Static (neither): Eq. 10, f = -F^t while |F^t| < mu_s |f_n|, F^t the tangential
+    pull.  The law has no memory of a displacement, so the pull is read from the slip
+    it produced in the last step: F^t = m_t v_t/dt, m_t = m* beta/(1 + beta) the mass
+    of the contact point's tangential motion (translation and rotation of both
+    grains), dt the time the evaluation stands for (the kick that follows it).  Half of
+    it is applied, f = -m_t v_t/(2 dt): the full amount, evaluated
+    with a predicted velocity, overshoots every step and flips the slip's sign.  A
+    steady pull F is then held with a creep of the contact point of 2 F dt/m_t, and a
+    contact whose creep passes the threshold slides.  When |f| would reach
+    mu_s |f_n| the contact slides from this step on.
+    w_r [rad/s]: the rolling part of w_i - w_j (tangent-plane component).
+    Returns f_t (3) [N], the energy dissipated [J] (-f.v_t dt; the couple's is the
+    caller's) and the regime: 1.0 sliding, 2.0 rolling, 0.0 static.
+    """
+    px = history[hrow(k, h)]
+    py = history[hrow(k, h + 1)]
+    pz = history[hrow(k, h + 2)]
+    catching = history[hrow(k, h + 3)] == 2.0
+    speed = math.sqrt(vtx * vtx + vty * vty + vtz * vtz)
+    turned = px * vtx + py * vty + pz * vtz < 0.0
+    sliding = speed > threshold and not catching and not turned
+    catching = speed > threshold and not sliding
+    regime = 0.0
+    fx = fy = fz = 0.0
+    if not sliding:
+        # rolling velocity R'_ij w_r x n (Eq. 7)
+        rx = r_roll * (wry * nz - wrz * ny)
+        ry = r_roll * (wrz * nx - wrx * nz)
+        rz = r_roll * (wrx * ny - wry * nx)
+        rolling = math.sqrt(rx * rx + ry * ry + rz * rz)
+        if rolling > threshold and not catching:
+            s = -fn * tan_theta_r / ((1.0 + inertia_ratio) * rolling)
+            fx, fy, fz = s * rx, s * ry, s * rz
+            regime = 2.0
+        elif dt > 0.0:          # (an evaluation that advances no time has no pull to read)
+            c = -0.5 * m_eff * inertia_ratio / ((1.0 + inertia_ratio) * dt)
+            fx, fy, fz = c * vtx, c * vty, c * vtz
+            sliding = fn > 0.0 and speed > 0.0 and \
+                fx * fx + fy * fy + fz * fz >= (mu_s * fn) ** 2
+        if not sliding:
+            history[hrow(k, h)] = 0.0
+            history[hrow(k, h + 1)] = 0.0
+            history[hrow(k, h + 2)] = 0.0
+            history[hrow(k, h + 3)] = 2.0 if catching else 1.0
+            return fx, fy, fz, -(fx * vtx + fy * vty + fz * vtz) * dt, regime
+    history[hrow(k, h)] = vtx
+    history[hrow(k, h + 1)] = vty
+    history[hrow(k, h + 2)] = vtz
+    history[hrow(k, h + 3)] = 1.0
+    fx, fy, fz, work = tangential_coulomb_force(mu_k, fn, vtx, vty, vtz, dt)
+    return fx, fy, fz, work, 1.0

@@ -121,7 +121,7 @@ class Simulation:
             raise ValueError("symmetry planes run on the CPU backend only: the GPU has no "
                              "image contacts")
         gravity = checked_gravity(gravity, state.dim)
-        self.params = self.model.pair_table(self.materials)
+        self.params = self.model.pair_table(self.materials, state.dim)
         self.model_ids = self.model.ids()
         self.dt_report = time_step_report(state, self.materials, self.model, dt, integrator)
         if dt is None:
