@@ -217,3 +217,33 @@ def test_oedometer_summary_without_enough_points(tmp_path, power_law):
     text = (out / "bauer_vertical.md").read_text()
     assert "too few points for a power-law fit" in text and "| 0.600 ± 0.010 |" in text
     assert "| 1/1, ladder stopped at 3.2 MPa |" in text
+
+
+def test_seed_rows_keep_spread_and_fit_error_apart(fake):
+    """The seed table gives the seed spread and the mean fit error side by side (the
+    main tables show only the larger of the two)."""
+    sweep, out, truth = fake
+    rows = bauer_sweep.seed_rows(sweeps.collect(sweep, out), "vertical")
+    row = next(r for r in rows if r["label"] == "friction_sliding" and r["display"] == 0.2)
+    eta = [truth[f"friction_sliding=0.2/seed-{s}"]["bauer"]["vertical"]["eta"]
+           for s in (1, 2, 3)]
+    assert row["fitted"] == 3 and row["eta"] == pytest.approx(np.mean(eta))
+    assert row["eta_spread"] == pytest.approx(np.std(eta, ddof=1))
+    assert row["eta_fit_err"] == pytest.approx(0.01)
+    assert "## Seed to seed" in bauer_sweep.seed_table(sweeps.collect(sweep, out),
+                                                        "vertical")
+
+
+def test_refit_without_the_first_level_recovers_the_law_behind_the_others():
+    """A ladder on Bauer's law (e0 0.9, h_s 500 MPa, eta 0.6) whose first level sits off
+    the curve: left out, the refit gives the law back."""
+    from graindyn.analysis.bauer import bauer
+
+    p = 12.5e3 * 2.0 ** np.arange(8)
+    e = bauer(p, 0.9, 500e6, 0.6)
+    e[0] += 0.004
+    ladder = [{"level": k, "sigma_top_Pa": float(p[k]), "trace_Pa": float(2 * p[k]),
+               "void_ratio": float(e[k]), "K0": 0.5 + 0.01 * k} for k in range(8)]
+    results = {"ladder": ladder, "bauer": {"vertical": {"levels": list(range(8))}}}
+    eta, h_s = bauer_sweep._refit_without_first(results, "vertical")
+    assert eta == pytest.approx(0.6, rel=1e-6) and h_s == pytest.approx(500e6, rel=1e-6)

@@ -14,7 +14,8 @@ mean, sqrt(sum err_i^2) / n.  With one seed that is the fit error.
 
 Written into the sweep directory:
 
-    bauer_vertical.md, bauer_trace.md     the tables, one per varied parameter
+    bauer_vertical.md, bauer_trace.md     the tables, one per varied parameter, then
+                                          the seed statistics of every value
     figures/hs_eta_vertical.png, ..._trace.png
     bauer_sweep.json                      the rows and the power-law fits
 """
@@ -26,6 +27,8 @@ import numpy as np
 
 MEASURES = {"vertical": "the vertical stress sigma_v on the piston",
             "trace": "the trace of the stress sigma_v + 2 sigma_lateral"}
+# the ladder column (results["ladder"], ladder.csv) each measure reads
+PRESSURE_COLUMNS = {"vertical": "sigma_top_Pa", "trace": "trace_Pa"}
 SHORT = {"vertical": "vertical stress", "trace": "trace of the stress"}
 # Oquendo et al.: the Guamo sand experiment and their fit over all runs (h_s in MPa)
 GUAMO = {"h_s_MPa": 19.1, "h_s_err_MPa": 1.1, "eta": 0.57, "eta_err": 0.01}
@@ -262,6 +265,102 @@ def _finite(data):
     return data
 
 
+def _refit_without_first(results, measure):
+    """(eta, h_s [Pa]) of Bauer's law refitted to the levels a run's fit used, its first
+    level left out; None when too few remain or the fit fails."""
+    from .bauer import BauerFitError, fit_bauer
+
+    fit = results["bauer"][measure]
+    levels = list(fit.get("levels") or [])[1:]
+    ladder = {r["level"]: r for r in results.get("ladder", [])}
+    if len(levels) < 4 or any(level not in ladder for level in levels):
+        return None
+    try:
+        refit = fit_bauer([ladder[v][PRESSURE_COLUMNS[measure]] for v in levels],
+                          [ladder[v]["void_ratio"] for v in levels], pressure=measure)
+    except BauerFitError:
+        return None
+    return refit.eta, refit.h_s
+
+
+def seed_rows(points, measure):
+    """Per (parameter, value): over the seeds with a fit, the mean, the seed spread
+    (sample standard deviation) and the mean fit error of eta and h_s [MPa] kept
+    apart; e0 and K0 (the mean over the fitted levels of each run) with their spread;
+    and eta and h_s refitted with the first fitted level left out."""
+    grouped = {}
+    for p in points:
+        grouped.setdefault(p.group, []).append(p)
+    out = []
+    for members in grouped.values():
+        fitted = [(p, f) for p, f in ((p, _fit(p, measure)) for p in members)
+                  if f is not None]
+        row = {"label": members[0].label, "display": members[0].display,
+               "reference": all(p.is_reference for p in members), "runs": len(members),
+               "fitted": len(fitted)}
+
+        def stats(name, values, errors=None):
+            values = np.asarray(values, float)
+            row[name] = float(np.mean(values)) if values.size else math.nan
+            row[name + "_spread"] = float(np.std(values, ddof=1)) if values.size > 1 \
+                else math.nan
+            if errors is not None:
+                row[name + "_fit_err"] = float(np.mean(errors)) if len(errors) else math.nan
+
+        stats("eta", [f["eta"] for _, f in fitted], [f["eta_err"] for _, f in fitted])
+        stats("h_s_MPa", [1e-6 * f["h_s_Pa"] for _, f in fitted],
+              [1e-6 * f["h_s_err_Pa"] for _, f in fitted])
+        stats("e0", [f["e0"] for _, f in fitted])
+        k0 = []
+        for p, f in fitted:
+            ladder = {r["level"]: r for r in p.results.get("ladder", [])}
+            values = [ladder[v]["K0"] for v in f.get("levels") or [] if v in ladder]
+            if values:
+                k0.append(np.mean(values))
+        stats("K0", k0)
+        refits = [r for r in (_refit_without_first(p.results, measure) for p, _ in fitted)
+                  if r is not None]
+        stats("eta_without_first", [r[0] for r in refits])
+        stats("h_s_MPa_without_first", [1e-6 * r[1] for r in refits])
+        row["refitted"] = len(refits)
+        out.append(row)
+    return out
+
+
+def seed_table(points, measure):
+    """The markdown table of seed_rows: each quantity as mean, seed spread and mean fit
+    error side by side."""
+    lines = ["## Seed to seed", "",
+             "Per value, over the seeds with a fit: the mean, the seed spread (sample "
+             "standard deviation) and the mean of the fit errors, kept apart; K0 is "
+             "each run's mean over its fitted levels; the last two columns refit each "
+             "run without its first fitted level.", "",
+             "| value | runs | e0 | K0 | eta | eta spread | eta fit error | h_s [MPa] | "
+             "h_s spread | h_s fit error | eta, first level out | h_s [MPa], first "
+             "level out |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+
+    def g(x, digits=3):
+        return "–" if not math.isfinite(x) else f"{x:.{digits}g}"
+
+    def spread(r, name):
+        """'mean ± spread', the mean alone with one seed, '–' with none."""
+        if not math.isfinite(r[name]):
+            return "–"
+        if not math.isfinite(r[name + "_spread"]):
+            return g(r[name])
+        return f"{g(r[name])} ± {g(r[name + '_spread'], 2)}"
+
+    for r in seed_rows(points, measure):
+        name = "reference" if r["reference"] else f"{r['label']} = {_fmt(r['display'])}"
+        lines.append(
+            f"| {name} | {r['fitted']}/{r['runs']} | {spread(r, 'e0')} | {spread(r, 'K0')} | "
+            f"{g(r['eta'])} | {g(r['eta_spread'], 2)} | {g(r['eta_fit_err'], 2)} | "
+            f"{g(r['h_s_MPa'])} | {g(r['h_s_MPa_spread'], 2)} | "
+            f"{g(r['h_s_MPa_fit_err'], 2)} | {spread(r, 'eta_without_first')} | "
+            f"{spread(r, 'h_s_MPa_without_first')} |")
+    return "\n".join(lines) + "\n"
+
+
 def summarize_sweep(sweep_dir, points):
     """Write the oedometer sweep's tables, figures and bauer_sweep.json into
     ``sweep_dir``; returns their paths."""
@@ -276,7 +375,8 @@ def summarize_sweep(sweep_dir, points):
             f"({len(unique_rows(table_rows))} points)" if fit is not None else message) \
             + (f"\n\nOquendo et al.: h_s = {PAPER_FIT['a_MPa']} eta^{PAPER_FIT['b']} MPa; "
                f"Guamo sand: h_s = {GUAMO['h_s_MPa']} ± {GUAMO['h_s_err_MPa']} MPa, "
-               f"eta = {GUAMO['eta']} ± {GUAMO['eta_err']}.\n")
+               f"eta = {GUAMO['eta']} ± {GUAMO['eta_err']}.\n") \
+            + "\n" + seed_table(points, measure)
         path = sweep_dir / f"bauer_{measure}.md"
         path.write_text(text)
         paths.append(path)
@@ -284,6 +384,7 @@ def summarize_sweep(sweep_dir, points):
                             fit, measure))
         summary["measures"][measure] = {
             "pressure": MEASURES[measure], "rows": table_rows,
+            "seed_rows": seed_rows(points, measure),
             "power_law": fit.as_dict() if fit is not None else None,
             "power_law_note": message}
     path = sweep_dir / "bauer_sweep.json"

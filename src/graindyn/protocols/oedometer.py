@@ -63,7 +63,7 @@ from .deposition import save_figure
 from .phases import SettleSettings, preparation
 
 PISTON = "piston"
-MEASURES = {"vertical": "sigma_top_Pa", "trace": "trace_Pa"}
+MEASURES = bauer_sweep.PRESSURE_COLUMNS
 # fewest loading levels at rest for a fit on those alone (Bauer's law has 3 parameters)
 MIN_AT_REST = 5
 BAND = 0.1  # the piston moves at full speed while the force error exceeds 10 % of the target
