@@ -88,6 +88,7 @@ def test_bauer_fit_uses_every_level_when_too_few_are_at_rest():
     (lambda c: c["protocol"].update(loading="piston", piston_mass=0.0), "piston_mass"),
     (lambda c: c["protocol"].update(loading="piston", piston_mass=-1.0), "piston_mass"),
     (lambda c: c["protocol"].update(loading="weight"), "loading"),
+    (lambda c: c["protocol"].update(level_min_time=0.2), "level_min_time"),
 ])
 def test_bad_oedometer_configs_are_refused(change, message):
     data = copy.deepcopy(SMALL)
@@ -236,6 +237,20 @@ def test_small_oedometer_under_the_massive_piston_reaches_every_level(tmp_path):
         assert r["sigma_top_Pa"] == pytest.approx(r["target_Pa"], rel=0.01)
     e = [r["void_ratio"] for r in rows]
     assert e[0] > e[1] > e[2], e
+
+
+def test_level_min_time_holds_every_level_under_its_load(tmp_path):
+    """level_min_time: a level at rest earlier stays under its load until then, so each
+    level lasts at least that long and still ends at rest."""
+    data = copy.deepcopy(SMALL)
+    data["protocol"].update(unload=False, level_min_time=0.02)
+    data["output"]["figures"] = False
+    results = execute(validate(data), tmp_path / "run", show_progress=False,
+                      echo=lambda *a: None)
+    rows = results["ladder"]
+    assert all(r["at_rest"] for r in rows)
+    ends = [r["time_s"] for r in rows]
+    assert min(np.diff(ends)) >= 0.02
 
 
 def test_oquendo_literal_reading_settles_denser_and_runs_the_ladder(tmp_path):

@@ -108,11 +108,18 @@ class OedometerSettings(SettleSettings):
     level_max_time: Float = _f(0.05, "longest relaxation per level [s] of simulated time "
                                "(the level is then recorded as not at rest); (0, 100]",
                                gt=0, le=100)
+    level_min_time: Float = _f(0.0, "shortest relaxation per level [s] of simulated time: "
+                               "a level at rest earlier is held under its load until then "
+                               "(laboratories wait minutes per level); [0, level_max_time]",
+                               ge=0)
 
     @model_validator(mode="after")
     def _ladder(self):
         if self.p_max < self.p0:
             raise ValueError(f"protocol.p_max = {self.p_max} Pa is below p0 = {self.p0} Pa")
+        if self.level_min_time > self.level_max_time:
+            raise ValueError(f"protocol.level_min_time = {self.level_min_time} s is longer "
+                             f"than level_max_time = {self.level_max_time} s")
         return self
 
 
@@ -244,7 +251,8 @@ class Load(ProtocolPhase):
             if p.loading == "servo" and not sim.rigid:
                 self._tune(sim, k, state)
             state["peak"] = max(state.get("peak", 0.0), sim.walls.normal_force(k))
-            if self._at_rest(sim, k):
+            if sim.time >= state["level_end"] - p.level_max_time + p.level_min_time \
+                    and self._at_rest(sim, k):
                 self._finish_level(sim, state, k, True)
             if between is not None and between(sim):
                 interrupted.append(True)
