@@ -29,9 +29,7 @@ class VibratedBedSettings(SettleSettings):
     duration: Float = _f(1.0, "time shaken [s]; (0, 1e4]", gt=0, le=1e4)
     sample_every: Float = _f(1e-3, "time between samples [s]; > 0", gt=0)
     settle_first: bool = _f(True, "settle the grains before shaking; false: shake from "
-                            "the inserted cloud (hard grains: a floor cannot push a bed "
-                            "of touching hard grains at rest without infinitely many "
-                            "collisions at one instant)")
+                            "the inserted cloud")
 
 
 class Shake(ProtocolPhase):

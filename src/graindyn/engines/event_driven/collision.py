@@ -25,36 +25,47 @@ kinetic energy lost splits exactly into
     dE_n = mu_n |v_n|^2 (1 - e_n^2) / 2,   dE_s = mu_s |v_s|^2 (1 - e_s^2) / 2   [J].
 
 Inelastic collapse (Pérez after Eq. 6: "let e_n tend to 1 if very small velocities
-appear"): ``restitution_now`` gives the normal restitution of one collision under the
-models of ``COLLAPSE``.
+appear"): ``restitution_now`` gives the restitutions of one collision under the models
+of ``COLLAPSE``.
 """
 from ..._jit import scalar
 
 # the inelastic-collapse treatments (engine setting ``collapse``)
 NONE, SPEED, TC = 0, 1, 2
 COLLAPSE = {"none": NONE, "speed": SPEED, "tc": TC}
+# under TC, collisions closer in time than this fraction of t_c count as simultaneous
+SAME_INSTANT = 1e-9
 
 
 @scalar
-def restitution_now(e0, model, approach_speed, collapse_speed, since_a, since_b,
+def restitution_now(e0, es0, model, approach_speed, collapse_speed, since_a, since_b,
                     contact_duration):
-    """The normal restitution [-] of one collision of base restitution ``e0``.
+    """The normal and tangential restitutions (e_n, e_s) [-] of one collision of base
+    restitutions ``e0`` and ``es0``.
 
-    model NONE: e0.  SPEED: e = 1 - (1 - e0) (u / u0)^(3/4) below u0 = ``collapse_speed``
-    [m/s] and e0 above it, u = ``approach_speed`` [m/s] (the impact-speed dependence
-    Bizon et al. 1998 and McNamara & Falcon 2004 use for vibrated beds): e tends to 1 as
-    u tends to 0, as Pérez asks.  TC (Luding & McNamara 1998): e = 1 when either grain
-    collided less than ``contact_duration`` t_c [s] before (``since_a``, ``since_b`` [s]:
-    the times since their last collisions), e0 otherwise."""
+    model NONE: (e0, es0).  SPEED: e_n = 1 - (1 - e0) (u / u0)^(3/4) below u0 =
+    ``collapse_speed`` [m/s] and e0 above it, u = ``approach_speed`` [m/s] (the
+    impact-speed dependence Bizon et al. 1998 and McNamara & Falcon 2004 use for
+    vibrated beds): e_n tends to 1 as u tends to 0, as Perez asks; e_s = es0.
+    TC (Luding & McNamara 1998): when either grain collided less than
+    ``contact_duration`` t_c [s] before (``since_a``, ``since_b`` [s]: the times since
+    their last collisions), the normal part is elastic, e_n = 1, and the tangential
+    part keeps es0; a collision at the same instant as the previous one of either
+    grain (within SAME_INSTANT t_c) is smooth as well, e_s = 1.  A rough grain wedged
+    between a moving floor and a side wall otherwise trades its spin and its velocity
+    at each impact and hits the two walls in turn forever at one instant; any wider
+    smooth window would leave the spin of hopping grains undamped, and a bed would
+    never come to rest.  (e0, es0) otherwise."""
     if model == SPEED:
         if approach_speed < collapse_speed:
-            return 1.0 - (1.0 - e0) * (approach_speed / collapse_speed) ** 0.75
-        return e0
+            return 1.0 - (1.0 - e0) * (approach_speed / collapse_speed) ** 0.75, es0
+        return e0, es0
     if model == TC:
         if since_a < contact_duration or since_b < contact_duration:
-            return 1.0
-        return e0
-    return e0
+            if min(since_a, since_b) < SAME_INSTANT * contact_duration:
+                return 1.0, 1.0
+            return 1.0, es0
+    return e0, es0
 
 
 @scalar

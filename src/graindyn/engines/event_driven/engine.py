@@ -270,9 +270,9 @@ class EventDriven:
             raise SimulationError(
                 f"inelastic collapse at t = {self.time:.9g} s: {ev.SAME_TIME_LIMIT} "
                 "collisions at one instant, a cluster whose collisions never end (a "
-                "collapse: choose collapse = 'tc' or 'speed'), or touching grains that a "
-                "wall or another grain drives at once (hard grains cannot be pushed as "
-                "a rigid body: start such a wall from rest, or loosen the grains)")
+                "collapse: choose collapse = 'tc' or 'speed'), or touching rough grains "
+                "that a wall drives at once (choose collapse = 'tc': its simultaneous "
+                "collisions are smooth)")
         ev.synchronise(self._grains(), end)
         self.clock[ev.TIME] = end
         self.state.time = end

@@ -343,12 +343,13 @@ def _pair_collision(g, tables, clock, counters, box, i, j, now):
     inv_ii = free_i / g.inertias[i]
     inv_ij = free_j / g.inertias[j]
     approach = vx * nx + vy * ny + vz * nz
-    e_n = restitution_now(tables.restitution[g.materials[i], g.materials[j]],
-                          counters[COLLAPSE_MODEL], approach, clock[COLLAPSE_SPEED],
-                          _since(g, i, now), _since(g, j, now), clock[CONTACT_DURATION])
+    e_n, e_s = restitution_now(tables.restitution[g.materials[i], g.materials[j]],
+                               clock[TANGENTIAL], counters[COLLAPSE_MODEL], approach,
+                               clock[COLLAPSE_SPEED], _since(g, i, now), _since(g, j, now),
+                               clock[CONTACT_DURATION])
     jx, jy, jz, dn, ds = collision_impulse(nx, ny, nz, vx, vy, vz, inv_mi + inv_mj,
                                            ri * ri * inv_ii + rj * rj * inv_ij, e_n,
-                                           clock[TANGENTIAL])
+                                           e_s)
     impulse = (jx, jy, jz)
     torque = (ny * jz - nz * jy, nz * jx - nx * jz, nx * jy - ny * jx)    # n x J
     for k in range(3):
@@ -388,13 +389,14 @@ def _wall_collision(g, walls, tables, clock, counters, i, w, now):
     vx, vy, vz = contact_velocity(nx, ny, nz, v[0] - wx, v[1] - wy, v[2] - wz, s[0], s[1],
                                   s[2], r, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     approach = vx * nx + vy * ny + vz * nz
-    e_n = restitution_now(tables.restitution[g.materials[i], walls.material[w]],
-                          counters[COLLAPSE_MODEL], approach, clock[COLLAPSE_SPEED],
-                          _since(g, i, now), math.inf, clock[CONTACT_DURATION])
+    e_n, e_s = restitution_now(tables.restitution[g.materials[i], walls.material[w]],
+                               clock[TANGENTIAL], counters[COLLAPSE_MODEL], approach,
+                               clock[COLLAPSE_SPEED], _since(g, i, now), math.inf,
+                               clock[CONTACT_DURATION])
     inv_m = 1.0 / g.masses[i]
     inv_i = 1.0 / g.inertias[i]
     jx, jy, jz, dn, ds = collision_impulse(nx, ny, nz, vx, vy, vz, inv_m, r * r * inv_i,
-                                           e_n, clock[TANGENTIAL])
+                                           e_n, e_s)
     before = 0.5 * (g.masses[i] * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
                     + g.inertias[i] * (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]))
     impulse = (jx, jy, jz)
