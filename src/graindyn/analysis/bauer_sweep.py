@@ -17,6 +17,8 @@ Written into the sweep directory:
     bauer_vertical.md, bauer_trace.md     the tables, one per varied parameter, then
                                           the seed statistics of every value
     figures/hs_eta_vertical.png, ..._trace.png
+    figures/compression.png               e/e0 against the vertical stress, every run,
+                                          one colour per value
     bauer_sweep.json                      the rows and the power-law fits
 """
 import json
@@ -254,6 +256,45 @@ def figure(path, table_rows, fit, measure):
     return path
 
 
+def compression_figure(path, points):
+    """e / e_first (the void ratio over that of the first level) against the vertical
+    stress on log axes: every finished run's loading levels (open markers where not at
+    rest), one colour per (parameter, value), so that the seed spread shows beside the
+    differences between values."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    groups = {}
+    for p in points:
+        if p.status == "finished" and (p.results or {}).get("ladder"):
+            groups.setdefault(p.group, []).append(p)
+    for k, members in enumerate(groups.values()):
+        first = members[0]
+        color = f"C{k % 10}"
+        name = "reference" if all(p.is_reference for p in members) else \
+            f"{first.label} = {_fmt(first.display)}"
+        for n, p in enumerate(members):
+            rows = [r for r in p.results["ladder"] if r["branch"] == "loading"]
+            stress = np.array([r["sigma_top_Pa"] for r in rows])
+            e = np.array([r["void_ratio"] for r in rows]) / rows[0]["void_ratio"]
+            rest = np.array([bool(r["at_rest"]) for r in rows])
+            ax.plot(stress, e, "-", color=color, lw=0.8, alpha=0.7,
+                    label=f"{name} ({len(members)} runs)" if n == 0 else None)
+            ax.plot(stress[rest], e[rest], "o", color=color, ms=3)
+            ax.plot(stress[~rest], e[~rest], "o", color=color, ms=3, mfc="none")
+    ax.set(xscale="log", xlabel="vertical stress [Pa]", ylabel="e / e (first level) [-]",
+           title="compression of every run (open: level not at rest)")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
 def _finite(data):
     """``data`` with NaN and infinities as None (valid JSON)."""
     if isinstance(data, dict):
@@ -387,6 +428,7 @@ def summarize_sweep(sweep_dir, points):
             "seed_rows": seed_rows(points, measure),
             "power_law": fit.as_dict() if fit is not None else None,
             "power_law_note": message}
+    paths.append(compression_figure(sweep_dir / "figures" / "compression.png", points))
     path = sweep_dir / "bauer_sweep.json"
     path.write_text(json.dumps(_finite(summary), indent=1, default=float))
     paths.append(path)
