@@ -249,11 +249,7 @@ def figure(path, table_rows, fit, measure):
     ax.xaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
     ax.xaxis.set_minor_formatter(matplotlib.ticker.ScalarFormatter())
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def compression_figure(path, points):
@@ -288,6 +284,13 @@ def compression_figure(path, points):
     ax.set(xscale="log", xlabel="vertical stress [Pa]", ylabel="e / e (first level) [-]",
            title="compression of every run (open: level not at rest)")
     ax.legend(fontsize=7)
+    return _save(fig, path)
+
+
+def _save(fig, path):
+    """Write ``fig`` to ``path`` (its folder made) and close it; returns the path."""
+    import matplotlib.pyplot as plt
+
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
