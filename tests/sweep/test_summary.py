@@ -171,7 +171,8 @@ def test_oedometer_summary_tables_figure_and_fit(fake, monkeypatch, power_law):
                         staticmethod(bauer_sweep.summarize_sweep))
     report = finish(sweep, out, say=lambda *a, **k: None)
     for name in ("bauer_vertical.md", "bauer_trace.md", "bauer_sweep.json",
-                 "figures/hs_eta_vertical.png", "figures/hs_eta_trace.png"):
+                 "figures/hs_eta_vertical.png", "figures/hs_eta_trace.png",
+                 "figures/compression.png"):
         assert (out / name).stat().st_size > 0, name
         assert out / name in report.paths
     table = (out / "bauer_vertical.md").read_text()

@@ -283,7 +283,8 @@ def compression_figure(path, points):
             ax.plot(stress[~rest], e[~rest], "o", color=color, ms=3, mfc="none")
     ax.set(xscale="log", xlabel="vertical stress [Pa]", ylabel="e / e (first level) [-]",
            title="compression of every run (open: level not at rest)")
-    ax.legend(fontsize=7)
+    if groups:
+        ax.legend(fontsize=7)
     return _save(fig, path)
 
 
