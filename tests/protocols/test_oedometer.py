@@ -239,6 +239,23 @@ def test_small_oedometer_under_the_massive_piston_reaches_every_level(tmp_path):
     assert e[0] > e[1] > e[2], e
 
 
+def test_cloud_taller_than_the_cylinder_is_refused(tmp_path):
+    """The piston starts at the top of the cylinder, so a random cloud that would reach
+    above it (packing fraction 0.1: about 26 mm in the 12 mm cylinder) is refused with
+    what to change, before any grain moves."""
+    data = copy.deepcopy(SMALL)
+    data["protocol"]["packing_fraction"] = 0.1
+    with pytest.raises(ValueError, match=r"insertion region 0\.02\d+ m high but the "
+                       r"closed cylinder is only 0\.012 m high: make it taller"):
+        execute(validate(data), tmp_path / "run", show_progress=False, echo=lambda *a: None)
+    data["walls"]["container"]["height"] = 30e-3
+    data["protocol"].update(p_max=2e3, unload=False)
+    data["output"]["figures"] = False
+    results = execute(validate(data), tmp_path / "tall", show_progress=False,
+                      echo=lambda *a: None)
+    assert results["ladder"][0]["at_rest"]
+
+
 def test_level_min_time_holds_every_level_under_its_load(tmp_path):
     """level_min_time: a level at rest earlier stays under its load until then, so each
     level lasts at least that long and still ends at rest."""

@@ -11,7 +11,7 @@ deadlines as simulated time, so a resumed run picks up inside the phase where it
 stopped and ends it where the uninterrupted run would have.
 """
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -27,7 +27,8 @@ class Vessel:
     lo, hi : (dim,) [m] the box's corners; for a cylinder the bounding box of its
       inside, from the bottom (z = 0) to its height.
     center, radius : the cylinder's axis (x, y) [m] and radius [m] (None for a box).
-    open_top : no wall at the top (a box built with open_top; a cylinder always).
+    open_top : no wall at the top (a box built with open_top; a cylinder unless a
+      protocol closes it with a lid or piston at its top, ``closed``).
     bottom_wall, side_walls : the names of its walls.
     cross_section [m^2] (2D: width [m]) and perimeter [m] (2D: 2, the two sides).
     symmetry : the symmetry planes (core.symmetry.Symmetry) that cut it (``mirrored``):
@@ -92,6 +93,11 @@ class Vessel:
                           self.bottom_wall, self.side_walls, share * self.cross_section,
                           share * self.perimeter, self.center, self.radius, tuple(planes))
 
+    def closed(self):
+        """This vessel with a wall at its top (a lid, a piston): nothing is inserted
+        above it."""
+        return replace(self, open_top=False)
+
     @property
     def floor(self):
         """Height [m] of the bottom (z in 3D, y in 2D)."""
@@ -104,12 +110,13 @@ class Vessel:
 
     def region(self, height):
         """The insertion region from the floor up to ``height`` [m] above it; ValueError
-        when a closed box is lower than that."""
+        when a closed vessel is lower than that."""
         top = self.floor + height
         if not self.open_top and top > self.top:
             raise ValueError(f"the grains need an insertion region {height:.4g} m high but "
-                             f"the closed box is only {self.top - self.floor:.4g} m high: "
-                             "open its top, make it taller or lower the count")
+                             f"the closed {self.shape} is only {self.top - self.floor:.4g} m "
+                             "high: make it taller, raise the packing fraction of the "
+                             "insertion or lower the count")
         if self.shape == "box":
             return BoxRegion(self.lo[:-1] + (self.floor,), self.hi[:-1] + (top,))
         return CylinderRegion(self.center, self.radius, self.floor, top,

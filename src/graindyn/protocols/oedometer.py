@@ -134,7 +134,7 @@ class Oedometer(Protocol):
     summarize_sweep = staticmethod(bauer_sweep.summarize_sweep)
 
     def __init__(self, settings, vessel):
-        super().__init__(settings, vessel)
+        super().__init__(settings, vessel.closed())    # the piston starts at its top
         self.phases = (*preparation(settings, vessel), Load(self))
 
     @classmethod
