@@ -13,15 +13,15 @@ them (the sifts then read contiguous memory, not the grains' scattered times), w
 (N,) each grain's place in the heap.  Ties are broken by the grain index, so the order
 of events is the same on every machine.
 """
-from ..._jit import driver
+from ..._jit import block_body
 
 
-@driver
+@block_body
 def _earlier(ta, a, tb, b):
     return ta < tb or (ta == tb and a < b)
 
 
-@driver
+@block_body
 def sift_up(heap, key, where, k):
     """Move the entry at heap place k up to where its key belongs."""
     grain = heap[k]
@@ -39,7 +39,7 @@ def sift_up(heap, key, where, k):
     where[grain] = k
 
 
-@driver
+@block_body
 def sift_down(heap, key, where, k):
     """Move the entry at heap place k down to where its key belongs."""
     n = heap.size
@@ -63,7 +63,7 @@ def sift_down(heap, key, where, k):
     where[grain] = k
 
 
-@driver
+@block_body
 def reschedule(heap, key, where, grain, time):
     """Give ``grain`` the key ``time`` [s] and restore the heap order."""
     k = where[grain]
@@ -74,7 +74,7 @@ def reschedule(heap, key, where, grain, time):
         sift_down(heap, key, where, k)
 
 
-@driver
+@block_body
 def build_heap(heap, key, where, time):
     """Order all grains by ``time`` (Floyd's bottom-up construction, O(N))."""
     n = heap.size

@@ -41,6 +41,10 @@ from .collision import COLLAPSE
 from .flight import wall_displacement
 
 # the per-grain arrays of the engine (beyond core.state.State's), saved in a snapshot
+# grains in a neighbourhood of 3^dim cells, on average, when the cells are wider than a
+# diameter: fewer cells mean fewer crossings but more pairs looked at per prediction
+# (measured on elastic gases at packing fractions 0.05 and 0.3, BENCHMARKS.md)
+NEIGHBOURHOOD_GRAINS = 5.0
 _GRAIN_ARRAYS = ("collisions", "last_collision")
 
 
@@ -161,8 +165,8 @@ class EventDriven:
     def _cells(self):
         """The cell grid of the grains as they are: cells at least a largest diameter
         wide, the period divided evenly along periodic axes, the grains' extent along
-        the others (the outermost cells reaching to infinity), at most about 2 N + 8
-        cells in all."""
+        the others (the outermost cells reaching to infinity), at most about
+        3^dim N / NEIGHBOURHOOD_GRAINS + 8 cells in all."""
         s = self.state
         w = self.walls
         dims = s.dim
@@ -179,7 +183,7 @@ class EventDriven:
         while True:
             for d in range(dims):
                 counts[d] = max(1, int(extent[d] // side))
-            if counts.prod() <= 2 * s.n + 8:
+            if counts.prod() <= 3**dims * s.n / NEIGHBOURHOOD_GRAINS + 8:
                 break
             side *= 1.25
         size = np.where(counts > 0, extent / counts, side)

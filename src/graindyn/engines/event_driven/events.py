@@ -26,7 +26,7 @@ import math
 
 import numpy as np
 
-from ..._jit import driver
+from ..._jit import block_body, driver
 from ..soft.integrators.rotation import rotate_quaternion
 from . import flight
 from .calendar import build_heap, reschedule
@@ -44,7 +44,7 @@ DONE, COLLAPSED = 0, 1
 SAME_TIME_LIMIT = 100_000        # events at one instant that make a collapse
 
 
-@driver
+@block_body
 def _advance(g, i, t):
     """Bring grain i from its own time to time t [s] by free flight (parabola, constant
     spin, the orientation turned exactly by w dt)."""
@@ -60,7 +60,7 @@ def _advance(g, i, t):
     g.local_time[i] = t
 
 
-@driver
+@block_body
 def _wrap(box, k, d):
     """d [m] along axis k wrapped to its minimum image."""
     if box.flag[k]:
@@ -68,9 +68,9 @@ def _wrap(box, k, d):
     return d
 
 
-@driver
-def _separation(g, box, i, j, t):
-    """r_i - r_j [m] (minimum image) and v_i - v_j [m/s] at time t, grain i being at t:
+@block_body
+def _relative(g, i, j, t):
+    """r_i - r_j [m] (not wrapped) and v_i - v_j [m/s] at time t, grain i being at t:
     (dx, dy, dz, ux, uy, uz)."""
     dt = t - g.local_time[j]
     m = 1.0 if g.fixed[j] == 0 else 0.0
@@ -85,24 +85,52 @@ def _separation(g, box, i, j, t):
     dx = p[i, 0] - p[j, 0] - m * dt * (v[j, 0] + 0.5 * dt * gx)
     dy = p[i, 1] - p[j, 1] - m * dt * (v[j, 1] + 0.5 * dt * gy)
     dz = p[i, 2] - p[j, 2] - m * dt * (v[j, 2] + 0.5 * dt * gz)
-    return (_wrap(box, 0, dx), _wrap(box, 1, dy), _wrap(box, 2, dz), v[i, 0] - vx,
-            v[i, 1] - vy, v[i, 2] - vz)
+    return dx, dy, dz, v[i, 0] - vx, v[i, 1] - vy, v[i, 2] - vz
 
 
-@driver
+@block_body
+def _separation(g, box, i, j, t):
+    """r_i - r_j [m] (minimum image) and v_i - v_j [m/s] at time t, grain i being at t:
+    (dx, dy, dz, ux, uy, uz)."""
+    dx, dy, dz, ux, uy, uz = _relative(g, i, j, t)
+    return _wrap(box, 0, dx), _wrap(box, 1, dy), _wrap(box, 2, dz), ux, uy, uz
+
+
+@block_body
 def _cell_range(cells, box, c, axis):
     """The cells next to cell c along ``axis`` (c included), without repeats: (first,
-    count), the cells being (first + k) mod n for k < count."""
+    count), the cells being first + k for k < count, unwrapped (_image wraps them)."""
     n = cells.count[axis]
     if box.flag[axis]:
         if n >= 3:
-            return c - 1 + n, 3
+            return c - 1, 3
         return 0, n
     first = max(c - 1, 0)
     return first, min(c + 1, n - 1) - first + 1
 
 
-@driver
+@block_body
+def _image(cells, box, raw, axis):
+    """The cell of unwrapped index ``raw`` along ``axis`` and the shift [m] that takes
+    r_i - r_j to the image of a grain j there next to grain i: (cell, shift)."""
+    n = cells.count[axis]
+    if raw < 0:
+        return raw + n, box.length[axis]
+    if raw >= n:
+        return raw - n, -box.length[axis]
+    return raw, 0.0
+
+
+@block_body
+def _wrapped(cells, box, axis):
+    """True along a periodic axis of fewer than 4 cells, where a grain of a neighbour
+    cell may be nearer through another image (with 4 or more, a neighbour is at most 2
+    cells, half the period, away): the separation is then wrapped to its minimum
+    image."""
+    return box.flag[axis] != 0 and cells.count[axis] < 4
+
+
+@block_body
 def _cell_bounds(cells, box, c, axis):
     """Lower and upper bound [m] of cell c along ``axis`` (infinite at the outer faces
     of a non-periodic axis)."""
@@ -116,7 +144,7 @@ def _cell_bounds(cells, box, c, axis):
     return lo, hi
 
 
-@driver
+@block_body
 def _unlink(cells, i):
     c = cells.cell[i]
     if cells.prev[i] >= 0:
@@ -127,7 +155,7 @@ def _unlink(cells, i):
         cells.prev[cells.next[i]] = cells.prev[i]
 
 
-@driver
+@block_body
 def _link(cells, i, c):
     cells.cell[i] = c
     cells.prev[i] = -1
@@ -137,7 +165,7 @@ def _link(cells, i, c):
     cells.head[c] = i
 
 
-@driver
+@block_body
 def _schedule(cal, i, next_time, kind, partner, count, cross_time, face):
     """Put grain i's next collision (absolute time, kind, partner, partner's counter) and
     next cell crossing (absolute time, face) in the calendar, keyed by the earlier."""
@@ -151,14 +179,14 @@ def _schedule(cal, i, next_time, kind, partner, count, cross_time, face):
     reschedule(cal.heap, cal.key, cal.where, i, cal.time[i])
 
 
-@driver
+@block_body
 def _coords(cells, c):
     nx_ = cells.count[0]
     ny_ = cells.count[1]
     return c % nx_, (c // nx_) % ny_, c // (nx_ * ny_)
 
 
-@driver
+@block_body
 def _crossing(g, cells, box, i):
     """The time [s] from now until grain i leaves its cell, and through which face."""
     cx, cy, cz = _coords(cells, cells.cell[i])
@@ -175,25 +203,39 @@ def _crossing(g, cells, box, i):
     return best, face
 
 
-@driver
+@block_body
 def _scan_pairs(g, cells, box, i, now, fx, nx, fy, ny, fz, nz, best, partner, count):
     """The earliest collision [s from now] of grain i with the grains of the block of
-    cells (fx + a) mod n_x, a < nx (and so for y, z), if earlier than ``best``: the
-    updated (best, partner, partner's counter)."""
+    cells fx + a, a < nx (unwrapped, _cell_range; and so for y, z), if earlier than
+    ``best``: the updated (best, partner, partner's counter).  Each cell's periodic
+    image is a shift of the separation, so no grain pair is wrapped one by one."""
     nx_ = cells.count[0]
     ny_ = cells.count[1]
+    wx = _wrapped(cells, box, 0)
+    wy = _wrapped(cells, box, 1)
+    wz = _wrapped(cells, box, 2)
+    reach_i = g.radii[i]
     for a in range(nz):
-        z = (fz + a) % cells.count[2]
+        z, sz = _image(cells, box, fz + a, 2)
         for b in range(ny):
-            y = (fy + b) % ny_
+            y, sy = _image(cells, box, fy + b, 1)
+            row = (z * ny_ + y) * nx_
             for e in range(nx):
-                x = (fx + e) % nx_
-                j = cells.head[(z * ny_ + y) * nx_ + x]
+                x, sx = _image(cells, box, fx + e, 0)
+                j = cells.head[row + x]
                 while j >= 0:
                     if j != i:
-                        dx, dy, dz, ux, uy, uz = _separation(g, box, i, j, now)
-                        t = flight.pair_time(dx, dy, dz, ux, uy, uz,
-                                             g.radii[i] + g.radii[j])
+                        dx, dy, dz, ux, uy, uz = _relative(g, i, j, now)
+                        dx += sx
+                        dy += sy
+                        dz += sz
+                        if wx:
+                            dx = _wrap(box, 0, dx)
+                        if wy:
+                            dy = _wrap(box, 1, dy)
+                        if wz:
+                            dz = _wrap(box, 2, dz)
+                        t = flight.pair_time(dx, dy, dz, ux, uy, uz, reach_i + g.radii[j])
                         if t < best:
                             best = t
                             partner = j
@@ -202,7 +244,7 @@ def _scan_pairs(g, cells, box, i, now, fx, nx, fy, ny, fz, nz, best, partner, co
     return best, partner, count
 
 
-@driver
+@block_body
 def _scan_walls(g, walls, clock, i, now, best, kind, partner):
     """The earliest wall collision (or re-check) of grain i before ``best`` [s from
     now]: the updated (best, kind, partner)."""
@@ -220,7 +262,7 @@ def _scan_walls(g, walls, clock, i, now, best, kind, partner):
     return best, kind, partner
 
 
-@driver
+@block_body
 def predict(g, cal, cells, walls, box, clock, i, now):
     """Find grain i's next events from ``now`` [s] (i must be at ``now``) and put them
     in the calendar: its cell crossing, and the earliest of its collisions with the
@@ -242,7 +284,7 @@ def predict(g, cal, cells, walls, box, clock, i, now):
     _schedule(cal, i, now + best, kind, partner, count, now + crossing, face)
 
 
-@driver
+@block_body
 def predict_crossed(g, cal, cells, walls, box, clock, i, now, face):
     """Grain i's next events after it crossed ``face`` into its new cell at ``now``: its
     trajectory is unchanged, so the collision predicted before stands (if with a grain:
@@ -265,7 +307,7 @@ def predict_crossed(g, cal, cells, walls, box, clock, i, now, face):
         fx, nx = _cell_range(cells, box, cx, 0)
         fy, ny = _cell_range(cells, box, cy, 1)
         fz, nz = _cell_range(cells, box, cz, 2)
-        first = (layer + n) % n
+        first = (layer + n) % n if _wrapped(cells, box, axis) else layer
         if axis == 0:
             fx, nx = first, 1
         elif axis == 1:
@@ -280,7 +322,7 @@ def predict_crossed(g, cal, cells, walls, box, clock, i, now, face):
     _schedule(cal, i, now + best, kind, partner, count, now + crossing, next_face)
 
 
-@driver
+@block_body
 def _least_rebound(g, clock, counters, i, mx, my, mz):
     """The smallest speed [m/s] at which grain i leaves a support of infinite mass (a
     wall, a held grain) whose normal (mx, my, mz) points from the support to the grain:
@@ -299,7 +341,7 @@ def _least_rebound(g, clock, counters, i, mx, my, mz):
     return least
 
 
-@driver
+@block_body
 def _lift(g, clock, counters, i, mx, my, mz, ux, uy, uz):
     """Make grain i leave a support (normal (mx, my, mz) from the support to it, the
     support's velocity (ux, uy, uz)) at least at _least_rebound; returns the kinetic
@@ -316,12 +358,12 @@ def _lift(g, clock, counters, i, mx, my, mz, ux, uy, uz):
     return 0.5 * g.masses[i] * (least * least - out * out)
 
 
-@driver
+@block_body
 def _since(g, i, now):
     return now - g.last_collision[i]
 
 
-@driver
+@block_body
 def _pair_collision(g, tables, clock, counters, box, i, j, now):
     """Carry out the collision of grains i and j at ``now`` (both there): Pérez Eq. 1-10
     through collision.collision_impulse, energy and virial bookkeeping."""
@@ -371,7 +413,7 @@ def _pair_collision(g, tables, clock, counters, box, i, j, now):
     counters[PAIR_COLLISIONS] += 1
 
 
-@driver
+@block_body
 def _wall_collision(g, walls, tables, clock, counters, i, w, now):
     """Carry out the collision of grain i with wall w at ``now`` (the wall as a grain of
     infinite mass moving at its velocity then): Pérez Eq. 1-10, the wall's impulse and
@@ -416,7 +458,7 @@ def _wall_collision(g, walls, tables, clock, counters, i, w, now):
     counters[WALL_COLLISIONS] += 1
 
 
-@driver
+@block_body
 def _cross(g, cells, box, i, face):
     """Move grain i into the cell beyond ``face`` of its own, shifting its coordinate by
     the period when it wraps around a periodic axis."""
@@ -528,11 +570,11 @@ def _close_pairs(g, cells, box, slack, out_i, out_j, out_gap):
         fy, ny = _cell_range(cells, box, (c // nx_) % ny_, 1)
         fz, nz = _cell_range(cells, box, c // (nx_ * ny_), 2)
         for a in range(nz):
-            z = (fz + a) % cells.count[2]
+            z = _image(cells, box, fz + a, 2)[0]
             for b in range(ny):
-                y = (fy + b) % ny_
+                y = _image(cells, box, fy + b, 1)[0]
                 for e in range(nx):
-                    x = (fx + e) % nx_
+                    x = _image(cells, box, fx + e, 0)[0]
                     j = cells.head[(z * ny_ + y) * nx_ + x]
                     while j >= 0:
                         if j > i:
