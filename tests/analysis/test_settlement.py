@@ -7,7 +7,7 @@ import pytest
 
 from graindyn.analysis.settlement import (chernoff_cycles, chernoff_probability, error_norm,
                                           fit_residual, increment_norm, lstsq_shared,
-                                          relative_error)
+                                          relative_error, smooth_increments)
 
 N = 50                     # grains
 PERIOD = 0.02              # [s], 50 Hz
@@ -152,3 +152,57 @@ def test_bad_input_is_rejected():
         fit_residual(np.zeros((3, 2, 3)), [1.0, 2.0, 3.0], "power")
     with pytest.raises(ValueError):
         chernoff_cycles(0.1, 1.5, 0.0, 1.0)
+
+
+def _lattice(n, spacing=1.0):
+    """A cubic lattice of n^3 points centred on the origin [m]."""
+    axis = spacing * (np.arange(n) - 0.5 * (n - 1))
+    return np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1).reshape(-1, 3)
+
+
+def test_smoothing_keeps_an_affine_field_and_averages_noise_away(rng):
+    """On a lattice, the Gaussian average of an affine field u = A x + c is the field
+    itself at every point whose neighbourhood (3 lengths) is complete, since the
+    neighbourhood is symmetric; white noise added to it comes out reduced by about the
+    square root of the weights' effective number, sum(w)^2 / sum(w^2)."""
+    x = _lattice(15)
+    a = rng.normal(size=(3, 3)) * 1e-3
+    c = rng.normal(size=3) * 1e-4
+    field = x @ a.T + c
+    length = 1.0
+    inner = np.all(np.abs(x) <= 7 - 3 * length, axis=1)
+    smooth = smooth_increments(x, field, length)
+    np.testing.assert_allclose(smooth[inner], field[inner], rtol=0, atol=1e-15)
+    sigma = 1e-4
+    noisy = field + sigma * rng.standard_normal(field.shape)
+    error = smooth_increments(x, noisy, length)[inner] - field[inner]
+    r = np.linalg.norm(_lattice(7), axis=1)
+    w = np.exp(-0.5 * r[r < 3 * length] ** 2 / length**2)
+    expected = sigma * np.sqrt(np.sum(w**2)) / np.sum(w)
+    assert np.std(error) == pytest.approx(expected, rel=0.1)
+    assert np.std(error) < 0.4 * sigma
+    np.testing.assert_array_equal(smooth_increments(x, noisy, 0.0), noisy)
+
+
+@pytest.mark.parametrize("axes", [(0,), (0, 1)])
+def test_smoothing_across_symmetry_planes_equals_the_whole_bed(rng, axes):
+    """Grains on the positive side of the planes x = 0 (and y = 0) with any
+    increments: smoothing them with the planes gives, grain by grain, what smoothing
+    the whole bed gives, the whole bed being them and their mirror images with the
+    normal component of the increments reversed (the corner image through both planes
+    included)."""
+    x = _lattice(12, spacing=1.1) + 0.05            # no grain on a plane
+    x = x[np.all(x[:, list(axes)] > 0, axis=1)]
+    u = rng.normal(size=x.shape)
+    clouds, values = [x], [u]
+    for axis in axes:
+        for cloud, value in list(zip(clouds, values)):
+            image, carried = cloud.copy(), value.copy()
+            image[:, axis] *= -1
+            carried[:, axis] *= -1
+            clouds.append(image)
+            values.append(carried)
+    length = 1.3
+    whole = smooth_increments(np.concatenate(clouds), np.concatenate(values), length)
+    got = smooth_increments(x, u, length, planes=[(a, 0.0) for a in axes])
+    np.testing.assert_allclose(got, whole[:x.shape[0]], rtol=0, atol=1e-13)

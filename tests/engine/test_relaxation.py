@@ -184,3 +184,42 @@ def test_relaxation_without_gravity_only_removes_the_overlaps(one_thread):
     assert hertz == pytest.approx(weight / r * moved, rel=1e-5)       # spring = contact
     assert overlap[1] == pytest.approx(_hertz_overlap(weight, youngs_eff, r / 2), rel=1e-4)
     assert sims[0].state.positions[0, 2] == r and sims[1].state.positions[0, 2] == r
+
+
+def test_a_relaxation_keeps_the_contact_history_when_asked(one_thread):
+    """Simulation.relax(start=, keep_contacts=True): a grain sheared on a fixed one
+    (Mindlin's tangential spring loaded), moved into it as an extrapolation would and
+    relaxed without gravity, still touches it and keeps its spring, which the next
+    step caps at mu f_n of the relaxed, lightly loaded contact (Coulomb); without
+    keep_contacts the spring is forgotten (relocation).  Both relax to the same
+    positions."""
+    r = 3e-3
+    rock = gd.Material("rock", density=2710.0, youngs_modulus=46.9e9, poisson_ratio=0.25,
+                       friction_sliding=0.5)
+    model = gd.ContactModel(normal="hertz", tangential="mindlin")
+    sims = []
+    for _ in range(2):
+        state = gd.State.create([[0.0, 0.0, 0.0], [0.0, 0.0, 1.9999 * r]], [r, r], 2710.0)
+        state.fixed[0] = 1
+        state.velocities[1] = (1e-3, 0.0, 0.0)
+        sim = gd.Simulation(state, [rock], model, gravity=(0.0, 0.0, 0.0))
+        sim.run(steps=20)
+        sims.append(sim)
+    spring = sims[0].pairs.history[0].copy()
+    assert abs(spring[0]) > 0.0
+    start = sims[0].state.positions.copy()
+    start[1, 2] -= 0.05 * r
+    kept = sims[0].relax(gravity=False, anchor=1.0, start=start, keep_contacts=True)
+    lost = sims[1].relax(gravity=False, anchor=1.0, start=start)
+    np.testing.assert_array_equal(kept.positions, lost.positions)
+    assert kept.overlaps_after.count == 1
+    for sim in sims:
+        sim.run(steps=1)
+    contact = sims[0].contacts()
+    shear = np.linalg.norm(contact.tangential_force[0])
+    assert shear == pytest.approx(0.5 * np.linalg.norm(contact.normal_force[0]), rel=2e-3)
+    kept_spring = sims[0].pairs.history[0, 0]
+    assert np.sign(kept_spring) == np.sign(spring[0]) and abs(kept_spring) < abs(spring[0])
+    assert np.abs(sims[1].pairs.history[0, :3]).max() < 1e-12 * abs(spring[0])
+    lost = sims[1].contacts()
+    assert np.linalg.norm(lost.tangential_force[0]) < 1e-12 * lost.normal_force[0]

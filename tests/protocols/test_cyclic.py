@@ -120,7 +120,29 @@ def test_interrupted_cyclic_run_resumes_to_the_same_numbers(cyclic, tmp_path):
     np.testing.assert_array_equal(load_residuals(run), load_residuals(finished))
 
 
-def test_the_procedure_extrapolates_relaxes_and_goes_on(tmp_path):
+@pytest.fixture(scope="module")
+def procedure(tmp_path_factory):
+    """Run the procedure (k_i = 2, k = 3, h = 3, 8 cycles) with extra protocol
+    settings: (run directory, results), each run made once."""
+    made = {}
+
+    def run(**settings):
+        key = tuple(sorted(settings.items()))
+        if key not in made:
+            made[key] = make(**settings)
+        return made[key]
+
+    def make(**settings):
+        data = copy.deepcopy(SMALL)
+        data["protocol"].update(cycles=8, extrapolation="shenton", initial_cycles=2,
+                                computed_cycles=3, extrapolated_cycles=3, **settings)
+        data["output"]["figures"] = False
+        out = tmp_path_factory.mktemp("procedure") / "run"
+        return out, execute(validate(data), out, show_progress=False, echo=lambda *a: None)
+    return run
+
+
+def test_the_procedure_extrapolates_relaxes_and_goes_on(procedure):
     """extrapolation = shenton, k_i = 2, k = 3, h = 3, 8 cycles: cycles 1-5 computed,
     cycles 6-8 extrapolated from the records of cycles 2-5, then relaxed: the
     relaxation removes the overlaps the extrapolation made (to below 1e-3 of a radius)
@@ -128,12 +150,7 @@ def test_the_procedure_extrapolates_relaxes_and_goes_on(tmp_path):
     written."""
     from graindyn.protocols.cyclic import residual_cycles
 
-    data = copy.deepcopy(SMALL)
-    data["protocol"].update(cycles=8, extrapolation="shenton", initial_cycles=2,
-                            computed_cycles=3, extrapolated_cycles=3)
-    data["output"]["figures"] = False
-    out = tmp_path / "run"
-    results = execute(validate(data), out, show_progress=False, echo=lambda *a: None)
+    out, results = procedure()
     assert [r["cycle"] for r in results["cycles"]] == [1, 2, 3, 4, 5]
     (jump,) = results["extrapolations"]
     assert (jump["from_cycle"], jump["to_cycle"], jump["estimator"]) == (5, 8, "shenton")
@@ -141,3 +158,16 @@ def test_the_procedure_extrapolates_relaxes_and_goes_on(tmp_path):
     assert jump["functional_after_J"] < jump["functional_before_J"]
     assert results["settlement_m"] == jump["settlement_m"]
     assert residual_cycles(out) == [1, 2, 3, 4, 5, 8]
+
+
+def test_smoothed_increments_overlap_the_grains_less(procedure):
+    """The same procedure with the extrapolated increments averaged over three radii
+    (smoothing) and the contacts kept: the same computed cycles to the bit, then an
+    extrapolation that drives the grains less into each other than each grain's own
+    trend does, relaxed as well."""
+    _, plain = procedure()
+    _, smooth = procedure(smoothing=3.0, keep_contacts=True)
+    assert smooth["cycles"] == plain["cycles"]
+    (a,), (b,) = plain["extrapolations"], smooth["extrapolations"]
+    assert b["largest_overlap_before"] < a["largest_overlap_before"]
+    assert b["largest_overlap_after"] < 1e-3

@@ -5,12 +5,14 @@ bed and the finished runs when called again."""
 import csv
 import json
 import math
+import shutil
 
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
 from graindyn.cli import app
+from graindyn.config.load import read_toml
 from graindyn.studies.settlement import (FULL, QUICK, contact_coordination, plan,
                                          run_settlement_study, set_dotted, study_config)
 
@@ -110,3 +112,22 @@ def test_configs_plans_and_overrides():
 def test_contact_coordination_counts_overlapping_pairs():
     positions = np.array([[0.0, 0, 0], [1.9, 0, 0], [3.9, 0, 0], [10, 0, 0]])
     assert contact_coordination(positions, np.ones(4)) == pytest.approx(2 * 1 / 4)
+
+
+def test_procedure_settings_go_to_the_runs_and_leave_the_bed(study, tmp_path):
+    """--set of the procedure's own settings (smoothing, keep_contacts, the relaxation)
+    reaches every run of the procedure, not full DEM, and the bed is reused."""
+    out, _, _ = study
+    shutil.copytree(out / "bed", tmp_path / "bed")
+    lines = []
+    summary = run_settlement_study(tmp_path, quick=True, ks=(3,), hs=(3,), k_fixed=3,
+                                   h_fixed=3, overrides={"protocol.smoothing": 2.0,
+                                                         "protocol.keep_contacts": True},
+                                   echo=lines.append)
+    assert any("bed: reusing" in line for line in lines)
+    assert list(summary["runs"]) == [FULL, "shenton_ki2_k3_h3"]
+    procedure = read_toml(tmp_path / "runs" / "shenton_ki2_k3_h3" / "config.toml")
+    full = read_toml(tmp_path / "runs" / FULL / "config.toml")
+    assert procedure["protocol"]["smoothing"] == 2.0
+    assert procedure["protocol"]["keep_contacts"] is True
+    assert full["protocol"]["smoothing"] == 0.0 and full["protocol"]["keep_contacts"] is False

@@ -62,6 +62,7 @@ import math
 
 import numpy as np
 from scipy.linalg import solve_triangular
+from scipy.spatial import cKDTree
 
 LAWS = ("linear", "shenton")
 
@@ -169,6 +170,48 @@ def fit_residual(displacements, times, law="shenton", intercept=False):
     coefficients = lstsq_shared(design, u[1:])
     fitted = np.einsum("tm,mnd->tnd", design, coefficients)
     return ResidualTrend(law, bool(intercept), coefficients, t, u[-1].copy(), u[1:] - fitted)
+
+
+def smooth_increments(positions, increments, length, planes=()):
+    """The extrapolated increments (N, 3) [m] of grains at ``positions`` (N, 3) [m]
+    averaged over their neighbourhood: each grain's increment replaced by the mean of
+    the increments of the grains within 3 ``length`` [m], weighted by the Gaussian
+    exp(-r^2 / (2 length^2)) of their distance r (its own with weight 1).
+
+    Why: each grain's trend is fitted to its own path, which carries the bed's noise
+    (a grain that rattled or slipped once during the window), and extrapolating that
+    noise over h cycles drives neighbours into each other by up to a radius, which the
+    relaxation must then undo.  A smooth field of increments moves touching grains
+    alike, so it changes their overlaps only by the field's gradient times their
+    distance.  ``planes``: the symmetry planes [(axis, at)] of a model cut by them
+    (core/symmetry.py): the grains within 3 length of a plane enter again as their
+    mirror images, the component normal to the plane reversed, so that a grain beside
+    the plane averages over both sides as in the whole bed (and its normal increment
+    tends to zero at the plane, as the symmetry requires).  length = 0 returns the
+    increments unchanged."""
+    x = np.asarray(positions, dtype=np.float64)
+    u = np.asarray(increments, dtype=np.float64)
+    if not length > 0:
+        return u.copy()
+    reach = 3.0 * length
+    sources, values = [x], [u]
+    for axis, at in planes:                     # each plane, then each pair of them
+        for k in range(len(sources)):
+            near = np.abs(sources[k][:, axis] - at) < reach
+            image, value = sources[k][near].copy(), values[k][near].copy()
+            image[:, axis] = 2.0 * at - image[:, axis]
+            value[:, axis] *= -1.0
+            sources.append(image)
+            values.append(value)
+    cloud, carried = np.concatenate(sources), np.concatenate(values)
+    pairs = cKDTree(x).sparse_distance_matrix(cKDTree(cloud), reach, output_type="ndarray")
+    weight = np.exp(-0.5 * (pairs["v"] / length) ** 2)
+    total = np.bincount(pairs["i"], weight, minlength=x.shape[0])
+    out = np.empty_like(u)
+    for d in range(u.shape[1]):
+        out[:, d] = np.bincount(pairs["i"], weight * carried[pairs["j"], d],
+                                minlength=x.shape[0]) / total
+    return out
 
 
 def increment_norm(displacements):

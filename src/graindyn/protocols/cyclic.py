@@ -53,7 +53,7 @@ from typing import Literal
 import numpy as np
 from ..analysis.packing import coordination_number
 from ..analysis.energy import energy_budget
-from ..analysis.settlement import fit_residual
+from ..analysis.settlement import fit_residual, smooth_increments
 from ..core.walls import Disk, Motion, Plane, Segment
 from ..schema import Float, Int, described as _f
 from .base import Protocol, ProtocolPhase, lower_onto_grains, register, run_until, write_rows
@@ -109,6 +109,14 @@ class CyclicSettings(SettleSettings):
                                     ">= 1", ge=1)
     relaxation_tolerance: Float = _f(1e-5, "largest residual force component a relaxation "
                                      "leaves, in mean grain weights [-]; > 0", gt=0)
+    smoothing: Float = _f(
+        0.0, "length over which the extrapolated increments are averaged, in mean grain "
+        "radii [-] (analysis.settlement.smooth_increments: a Gaussian of that width over "
+        "the grains within three of it, mirror images across the symmetry planes); 0: "
+        "every grain moved by its own fitted trend (Karrech); >= 0", ge=0)
+    keep_contacts: bool = _f(False, "the contacts still touching after an extrapolation and "
+                             "its relaxation keep their history (tangential springs); "
+                             "false: every contact starts unloaded (relocation)")
     hold_frontier: bool = _f(False, "hold the grains touching the container's walls where "
                              "the extrapolation put them while the others relax (Karrech "
                              "Sec. 4); false: every grain relaxes, the walls confining them")
@@ -253,11 +261,14 @@ class Cycles(ProtocolPhase):
         (analysis.settlement.fit_residual; times t_p = p T from the start of the
         cycles, Shenton's law as the paper fits it, without an intercept: with one, a
         window of a few cycles fits its noise and can extrapolate backwards), the
-        grains and the plate moved to where it puts them h cycles on, the grains then
-        relaxed from rest (Eq. 29, engine.relax: Hertz potentials, gravity unless
-        relaxation = "overlaps", the walls and the plate where they are; with
-        hold_frontier the grains touching the container's walls held, as Karrech et al.
-        do), and a new round starting from there."""
+        grains and the plate moved to where it puts them h cycles on (with
+        ``smoothing``, the grains' increments averaged over their neighbourhood first:
+        analysis.settlement.smooth_increments), the grains then relaxed from rest
+        (Eq. 29, engine.relax: Hertz potentials, gravity unless relaxation =
+        "overlaps", the walls and the plate where they are; with hold_frontier the
+        grains touching the container's walls held, as Karrech et al. do; with
+        keep_contacts the contacts that persist keep their tangential history), and a
+        new round starting from there."""
         p = self.p
         if not hasattr(engine, "relax"):
             raise ValueError("the cyclic procedure needs an engine that can relax its "
@@ -275,15 +286,20 @@ class Cycles(ProtocolPhase):
         for name, values in (("grains", grains), ("plate", plates)):
             trend = fit_residual(values - values[0], times, law)
             moved[name] = values[0] + trend.extrapolate(end)
+        if p.smoothing > 0:
+            s = engine.state
+            last = grains[-1]
+            moved["grains"] = last + smooth_increments(
+                last, moved["grains"] - last, p.smoothing * float(np.mean(s.radii)),
+                planes=[(plane.index, plane.at) for plane in self.vessel.symmetry])
         held = engine.state.fixed != 0
-        free = np.flatnonzero(~held)
-        engine.relocate(free, moved["grains"][free], np.zeros((free.size, 3)))
         engine.place_wall(k, moved["plate"][0])
         result = engine.relax(fixed=held | self._frontier(engine, k) if p.hold_frontier
                               else held, force_tolerance=p.relaxation_tolerance,
                               gravity=p.relaxation == "gravity",
                               anchor=0.0 if p.relaxation == "gravity" else 1.0,
-                              max_iterations=p.relaxation_iterations)
+                              max_iterations=p.relaxation_iterations,
+                              start=moved["grains"], keep_contacts=p.keep_contacts)
         state["cycle"] += ahead
         jump = {"from_cycle": state["cycle"] - ahead, "to_cycle": state["cycle"],
                 "estimator": law, "settlement_m": state["plate_0"] - self._plate(engine, k),

@@ -106,6 +106,10 @@ MODES = {
 # The protocol settings a study run sets; the bed is the rest of the config.
 RUN_KEYS = ("cycles", "extrapolation", "initial_cycles", "computed_cycles",
             "extrapolated_cycles")
+# The procedure's own settings: given to the study (--set), they go to every run of the
+# procedure and leave the bed, which does not read them, as it is (and reusable).
+PROCEDURE_KEYS = ("relaxation", "relaxation_iterations", "relaxation_tolerance",
+                  "smoothing", "keep_contacts", "hold_frontier")
 
 
 # ------------------------------------------------------------------ configs
@@ -364,7 +368,11 @@ def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=Non
         if grains is None and not q:
             grains = 430
     data = study_config(base, grains, {**MODES[mode], **(overrides or {})})
+    procedure = {key: data["protocol"].pop(key) for key in PROCEDURE_KEYS
+                 if key in data["protocol"]}
     runs, families = plan(cycles, initial_cycles, ks, hs, k_fixed, h_fixed, estimator)
+    runs = {name: settings if name == FULL else {**procedure, **settings}
+            for name, settings in runs.items()}
     out.mkdir(parents=True, exist_ok=True)
     bed = out / "bed"
     prepare_bed(data, bed, echo=echo)

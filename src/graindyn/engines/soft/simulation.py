@@ -688,9 +688,19 @@ class Simulation:
         multi-step schemes restart their history for every grain).  The elastic energy
         the relocated grains' contacts held leaves the energy balance, as their
         potential and kinetic energy change."""
+        self._move(indices, positions, velocities, angular_velocities, forget=True)
+
+    def _move(self, indices, positions, velocities, angular_velocities=None, forget=True):
+        """Move grains (relocate); ``forget`` False keeps the history, forces and torques
+        of their contacts, as for grains that moved a little with their contacts (the
+        lists, rebuilt before the next step, carry the rows of the pairs still listed)."""
         s = self.state
         idx = s.move(indices, positions, velocities, angular_velocities)
         if idx.size == 0:
+            return
+        self.counters[loop.FORCE_REBUILD] = 1
+        self.reset_integrator_history()
+        if not forget:
             return
         chosen = np.zeros(s.n, bool)
         chosen[idx] = True
@@ -706,8 +716,6 @@ class Simulation:
                 stale |= chosen[arrays["ids"][:m] // MASKS]
             for name in ("history", "force", "torque_j" if partner == "partners" else "torque"):
                 arrays[name][:m][stale] = 0.0
-        self.counters[loop.FORCE_REBUILD] = 1
-        self.reset_integrator_history()
 
     def hold(self, indices):
         """Stop grains ``indices`` and hold them where they are (engine.Engine.hold): they
@@ -741,26 +749,34 @@ class Simulation:
             stiffness=stiffness, max_speed=max_speed, direction=direction))
 
     def relax(self, fixed=None, force_tolerance=1e-5, gravity=True, max_iterations=10000,
-              anchor=0.0):
+              anchor=0.0, start=None, keep_contacts=False):
         """Move the grains to the minimum of Karrech et al.'s Eq. 29 (Hertz contact
         potentials, gravity, the walls where they are, the images of the symmetry
         planes; relaxation.relax), from rest:
         the free grains are relocated there with zero velocities, without their contact
-        history (relocate).  fixed : (N,) bool grains held where they are (None: the
-        fixed grains); gravity : False leaves gravity out of the functional; anchor :
-        springs holding each grain to where it starts, in weights per mean radius
-        (relaxation.relax), which with gravity off make the relaxation remove the
-        overlaps moving the grains as little as it can; max_iterations of L-BFGS.
-        Returns the relaxation.Relaxation report."""
+        history (relocate) unless ``keep_contacts``.  fixed : (N,) bool grains held
+        where they are (None: the fixed grains); gravity : False leaves gravity out of
+        the functional; anchor : springs holding each grain to where it starts, in
+        weights per mean radius (relaxation.relax), which with gravity off make the
+        relaxation remove the overlaps moving the grains as little as it can;
+        max_iterations of L-BFGS; start : (N, 3) [m] the free grains' positions to
+        relax from (None: where they are); keep_contacts : the contacts that are still
+        listed after the move keep their history (the tangential springs of Mindlin's
+        and Cundall-Strack's laws), as for a configuration moved a little from a
+        computed one.  Returns the relaxation.Relaxation report."""
         from .relaxation import relax
 
+        held = self.state.fixed != 0 if fixed is None else np.asarray(fixed, bool)
+        free = np.flatnonzero(~held)
+        rest = np.zeros((free.size, 3))
+        if start is not None:
+            self._move(free, np.asarray(start, dtype=np.float64)[free], rest,
+                       forget=not keep_contacts)
         result = relax(self.state, self.materials, walls=self.walls, fixed=fixed,
                        gravity=self.gravity if gravity else np.zeros(3),
                        force_tolerance=force_tolerance, max_iterations=max_iterations,
                        symmetry=self.symmetry, anchor=anchor)
-        held = self.state.fixed != 0 if fixed is None else np.asarray(fixed, bool)
-        free = np.flatnonzero(~held)
-        self.relocate(free, result.positions[free], np.zeros((free.size, 3)))
+        self._move(free, result.positions[free], rest, forget=not keep_contacts)
         return result
 
     def place_wall(self, wall, offset):
