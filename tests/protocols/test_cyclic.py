@@ -134,8 +134,9 @@ def procedure(tmp_path_factory):
 
     def make(**settings):
         data = copy.deepcopy(SMALL)
-        data["protocol"].update(cycles=8, extrapolation="shenton", initial_cycles=2,
-                                computed_cycles=3, extrapolated_cycles=3, **settings)
+        data["protocol"].update({"cycles": 8, "extrapolation": "shenton",
+                                 "initial_cycles": 2, "computed_cycles": 3,
+                                 "extrapolated_cycles": 3, **settings})
         data["output"]["figures"] = False
         out = tmp_path_factory.mktemp("procedure") / "run"
         return out, execute(validate(data), out, show_progress=False, echo=lambda *a: None)
@@ -158,6 +159,16 @@ def test_the_procedure_extrapolates_relaxes_and_goes_on(procedure):
     assert jump["functional_after_J"] < jump["functional_before_J"]
     assert results["settlement_m"] == jump["settlement_m"]
     assert residual_cycles(out) == [1, 2, 3, 4, 5, 8]
+
+
+def test_h_grows_from_round_to_round(procedure):
+    """extrapolated_growth = 2 with k_i = 2, k = 3, h = 1 over 12 cycles: cycles 1-5
+    computed, 6 extrapolated (h = 1), 7-9 computed, 10-11 extrapolated (h = 2), 12
+    computed; h = 4 would overshoot the last cycle, so a third round is not made."""
+    _, results = procedure(cycles=12, extrapolated_cycles=1, extrapolated_growth=2.0)
+    jumps = [(j["from_cycle"], j["to_cycle"]) for j in results["extrapolations"]]
+    assert jumps == [(5, 6), (9, 11)]
+    assert [r["cycle"] for r in results["cycles"]] == [1, 2, 3, 4, 5, 7, 8, 9, 12]
 
 
 def test_smoothed_increments_overlap_the_grains_less(procedure):

@@ -91,7 +91,12 @@ class CyclicSettings(SettleSettings):
                              ">= 1", ge=1)
     computed_cycles: Int = _f(10, "k: cycles computed per round, the training data of its "
                               "extrapolation; >= 2", ge=2)
-    extrapolated_cycles: Int = _f(10, "h: cycles extrapolated per round; >= 1", ge=1)
+    extrapolated_cycles: Int = _f(10, "h: cycles extrapolated in the first round; >= 1",
+                                  ge=1)
+    extrapolated_growth: Float = _f(
+        1.0, "the factor h grows by from one round to the next, h_r = round(h g^r) for "
+        "round r = 0, 1, ... (Karrech Sec. 5: the error falls as the cycles computed so "
+        "far grow, so h may grow with them); >= 1", ge=1)
     plate_fraction: Float = _f(
         1.0, "the fraction of the container's width the plate covers [-], in (0, 1]: 1 an "
         "infinite plane over the whole top (fully confined); < 1 a finite plate centred on "
@@ -277,7 +282,8 @@ class Cycles(ProtocolPhase):
         period = 1.0 / p.frequency
         first = state["cycle"] - p.computed_cycles
         times = period * np.arange(first, state["cycle"] + 1)
-        ahead = min(p.extrapolated_cycles, p.cycles - state["cycle"])
+        planned = round(p.extrapolated_cycles * p.extrapolated_growth ** len(state["jumps"]))
+        ahead = min(planned, p.cycles - state["cycle"])
         end = period * (state["cycle"] + ahead)
         law = p.extrapolation
         grains = np.array([r["positions"] for r in records])
