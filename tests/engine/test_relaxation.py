@@ -98,11 +98,13 @@ def test_grain_on_a_fixed_grain_and_on_a_wall(one_thread):
     assert small - result.positions[0, 2] == pytest.approx(expected, rel=1e-4)
 
 
+@pytest.mark.parametrize("excess", [False, True])
 @pytest.mark.parametrize("quarter", [False, True])
-def test_functional_gradient_against_finite_differences(one_thread, quarter):
+def test_functional_gradient_against_finite_differences(one_thread, quarter, excess):
     """The gradient of Eq. 29 is its derivative, also with the half potentials of the
     image contacts of two symmetry planes (the quarter of the cylinder: grains near
-    x = 0 and y = 0, each touching its own images and the others')."""
+    x = 0 and y = 0, each touching its own images and the others'), and with only the
+    overlaps beyond those of an allowed configuration entering (excess)."""
     rng = np.random.default_rng(7)
     n = 12
     low = [0.5e-3, 0.5e-3, 2.6e-3] if quarter else [-4e-3, -4e-3, 2.6e-3]
@@ -120,6 +122,7 @@ def test_functional_gradient_against_finite_differences(one_thread, quarter):
     free = np.ones(n, np.int8)
     gravity = np.array([0.0, 0.0, -G])
     reference = state.positions + rng.normal(0, 1e-4, (n, 3))
+    allowed = state.positions + rng.normal(0, 3e-4, (n, 3))
 
     def energy(at):
         gradient = np.zeros((n, 3))
@@ -129,7 +132,7 @@ def test_functional_gradient_against_finite_differences(one_thread, quarter):
                            walls.periodic_flag, walls.periodic_length, lists.wall_start,
                            lists.wall_ids, walls.kind, walls.geometry, walls.offset,
                            walls.material.astype(np.int64), lists.image_start,
-                           lists.image_codes, planes.at, gradient)
+                           lists.image_codes, planes.at, allowed, excess, gradient)
         return value, gradient
 
     value, gradient = energy(state.positions)
@@ -223,3 +226,35 @@ def test_a_relaxation_keeps_the_contact_history_when_asked(one_thread):
     assert np.abs(sims[1].pairs.history[0, :3]).max() < 1e-12 * abs(spring[0])
     lost = sims[1].contacts()
     assert np.linalg.norm(lost.tangential_force[0]) < 1e-12 * lost.normal_force[0]
+
+
+def test_only_the_excess_overlap_is_relaxed(one_thread):
+    """relax(allowed=): a grain resting on a fixed grain with the overlap of its
+    weight, then pushed 0.05 R further into it (as an extrapolation might), relaxed
+    without gravity: with the resting configuration allowed it comes back to that
+    overlap (the contact stays loaded, within the anchor's pull), where the plain
+    overlaps relaxation empties the contact."""
+    r = 3e-3
+    youngs_eff = 1.0 / (2 * (1 - 0.25**2) / 46.9e9)
+    state = gd.State.create([[0.0, 0.0, 0.0], [0.0, 0.0, 2 * r]], [r, r], 2710.0)
+    weight = state.masses[1] * G
+    resting = 2 * r - _hertz_overlap(weight, youngs_eff, r / 2)
+    state.positions[1, 2] = resting
+    state.fixed[0] = 1
+    allowed = state.positions.copy()
+    state.positions[1, 2] -= 0.05 * r
+    kept = relax(state, [DIORITE], gravity=(0, 0, 0), anchor=1.0, allowed=allowed,
+                 force_tolerance=1e-9)
+    emptied = relax(state, [DIORITE], gravity=(0, 0, 0), anchor=1.0, force_tolerance=1e-9)
+    assert kept.converged and emptied.converged
+    rest_overlap = 2 * r - resting
+    start = state.positions[1, 2]
+    for result, keeps in ((kept, rest_overlap), (emptied, 0.0)):
+        height = result.positions[1, 2]
+        anchor_force = weight / r * (height - start)          # one weight per radius
+        excess = 2 * r - height - keeps
+        assert excess == pytest.approx(_hertz_overlap(anchor_force, youngs_eff, r / 2),
+                                       rel=1e-3)
+    assert 2 * r - kept.positions[1, 2] > rest_overlap          # still loaded
+    assert 2 * r - emptied.positions[1, 2] < 0.2 * rest_overlap  # emptied
+    np.testing.assert_array_equal(kept.positions[0], allowed[0])

@@ -103,13 +103,15 @@ class CyclicSettings(SettleSettings):
         "the axis (partially confined): a disk of diameter fraction x the cylinder's "
         "diameter, or a rectangle of fraction x each side of a box (a segment of fraction "
         "x the width in 2D)", gt=0, le=1)
-    relaxation: Literal["gravity", "overlaps"] = _f(
+    relaxation: Literal["gravity", "overlaps", "excess"] = _f(
         "gravity", "the functional each extrapolation is relaxed by: gravity (Karrech "
-        "Eq. 29: the Hertz potentials and gravity, the plate a wall where it was put) or "
+        "Eq. 29: the Hertz potentials and gravity, the plate a wall where it was put), "
         "overlaps (the Hertz potentials and springs of one grain weight per mean radius "
         "holding each grain where the extrapolation put it: the excessive overlaps "
         "are removed moving the grains as little as possible, gravity and the load "
-        "coming back with the computed cycles)")
+        "coming back with the computed cycles) or excess (as overlaps, but each grain "
+        "pair keeps the overlap it had at the end of the last computed cycle and only "
+        "the excess is relaxed: the contacts stay loaded)")
     relaxation_iterations: Int = _f(10000, "most L-BFGS iterations of a relaxation [-]; "
                                     ">= 1", ge=1)
     relaxation_tolerance: Float = _f(1e-5, "largest residual force component a relaxation "
@@ -305,7 +307,8 @@ class Cycles(ProtocolPhase):
                               gravity=p.relaxation == "gravity",
                               anchor=0.0 if p.relaxation == "gravity" else 1.0,
                               max_iterations=p.relaxation_iterations,
-                              start=moved["grains"], keep_contacts=p.keep_contacts)
+                              start=moved["grains"], keep_contacts=p.keep_contacts,
+                              allowed=grains[-1] if p.relaxation == "excess" else None)
         state["cycle"] += ahead
         jump = {"from_cycle": state["cycle"] - ahead, "to_cycle": state["cycle"],
                 "estimator": law, "settlement_m": state["plate_0"] - self._plate(engine, k),

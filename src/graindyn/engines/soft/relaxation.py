@@ -116,7 +116,7 @@ def functional(positions, reference, radii, masses, materials, youngs, gravity, 
                free,
                start, partners, periodic_flag, periodic_length,
                wall_start, wall_ids, wall_kind, wall_geometry, wall_offset, wall_material,
-               image_start, image_codes, mirror_at, gradient):
+               image_start, image_codes, mirror_at, allowed, excess, gradient):
     """Eq. 29 [J] at ``positions`` (N, 3) [m], displacements from ``reference``; writes
     its gradient (N, 3) [N] (minus the net force on each grain; 0 on grains with
     free[b] == 0).  youngs[a, b]: E* [Pa] of materials a, b; gravity (3,) [m/s^2];
@@ -124,7 +124,10 @@ def functional(positions, reference, radii, masses, materials, youngs, gravity, 
     its reference place (0: none); start, partners: the pair list (CSR, i < j); wall_start,
     wall_ids: the grain-wall candidates; the wall arrays as in core/walls.py;
     image_start, image_codes, mirror_at: the image candidates of the symmetry planes
-    (core/symmetry.py), half the potential of each, its whole force on its grain."""
+    (core/symmetry.py), half the potential of each, its whole force on its grain.
+    With ``excess`` True a grain pair (or image pair) enters only with the overlap
+    beyond the one it has at the ``allowed`` positions (N, 3) [m]: psi(delta -
+    delta_allowed), the Hertz potential of the excess."""
     n = radii.size
     energy = 0.0
     for b in range(n):
@@ -143,6 +146,14 @@ def functional(positions, reference, radii, masses, materials, youngs, gravity, 
                            periodic_length[2])
             distance = math.sqrt(dx * dx + dy * dy + dz * dz)
             overlap = radii[i] + radii[j] - distance
+            if excess:
+                ax = min_image(allowed[i, 0] - allowed[j, 0], periodic_flag[0],
+                               periodic_length[0])
+                ay = min_image(allowed[i, 1] - allowed[j, 1], periodic_flag[1],
+                               periodic_length[1])
+                az = min_image(allowed[i, 2] - allowed[j, 2], periodic_flag[2],
+                               periodic_length[2])
+                overlap -= max(0.0, radii[i] + radii[j] - math.sqrt(ax * ax + ay * ay + az * az))
             if overlap <= 0.0 or distance == 0.0:
                 continue
             r_eff = radii[i] * radii[j] / (radii[i] + radii[j])
@@ -176,6 +187,10 @@ def functional(positions, reference, radii, masses, materials, youngs, gravity, 
                                           periodic_flag, periodic_length)
             distance = math.sqrt(dx * dx + dy * dy + dz * dz)
             overlap = radii[i] + radii[j] - distance
+            if excess:
+                ax, ay, az = image_separation(i, image_codes[q], allowed, mirror_at,
+                                              periodic_flag, periodic_length)
+                overlap -= max(0.0, radii[i] + radii[j] - math.sqrt(ax * ax + ay * ay + az * az))
             if overlap <= 0.0 or distance == 0.0:
                 continue
             r_eff = radii[i] * radii[j] / (radii[i] + radii[j])
@@ -305,7 +320,7 @@ def youngs_table(materials):
 
 def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), loads=None,
           skin=None, force_tolerance=1e-5, max_iterations=10000, update=False,
-          symmetry=(), anchor=0.0):
+          symmetry=(), anchor=0.0, allowed=None):
     """Minimise the functional of Eq. 29 over the positions of the free grains.
 
     state : core.State (positions, radii, masses, materials);  materials : the list of
@@ -321,7 +336,12 @@ def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), l
     weight m_b 9.81 m/s^2 per mean radius [-] (0: none): with gravity off, the
     relaxation then removes the overlaps moving the grains as little as it can (the
     functional without gravity is flat wherever no grains overlap, and a first
-    quasi-Newton step could throw a grain a radius away).
+    quasi-Newton step could throw a grain a radius away);  allowed : (N, 3) [m] a
+    configuration whose overlaps between grains are kept: each pair enters with the
+    Hertz potential of its overlap beyond the one it has there (None: the whole
+    overlap), so that a configuration moved on from a computed one (an extrapolation)
+    loses its excessive overlaps and keeps the loaded contacts it had; grain-wall
+    contacts enter whole.  The overlaps reported are the whole ones.
     Returns a Relaxation.  Only the positions move: 2D states keep z = 0.  From a
     soft-engine run: ``relax(sim.state, materials, walls=sim.walls)``.
     """
@@ -357,6 +377,9 @@ def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), l
         raise ValueError(f"force_tolerance must be > 0 [weights], got {force_tolerance}")
 
     reference = np.ascontiguousarray(state.positions, dtype=np.float64).copy()
+    excess = allowed is not None
+    allowed = reference if allowed is None else \
+        np.ascontiguousarray(allowed, dtype=np.float64).reshape(n, 3)
     variable = np.zeros((n, 3), bool)
     variable[free == 1, :state.dim] = True
     length = float(radii.mean())
@@ -376,7 +399,8 @@ def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), l
                           springs, free, lists.start, lists.partners, walls.periodic_flag,
                           walls.periodic_length, lists.wall_start, lists.wall_ids,
                           walls.kind, walls.geometry, walls.offset, wall_material,
-                          lists.image_start, lists.image_codes, symmetry.at, gradient)
+                          lists.image_start, lists.image_codes, symmetry.at, allowed,
+                          excess, gradient)
 
     def scaled(x):
         positions[variable] = reference[variable] + x * length

@@ -356,7 +356,8 @@ class DeviceEnsemble:
                    w.wall_ids, w.wall_history, w.contact_force, w.contact_torque,
                    g.max_overlap, self.lost, self.ops["lost"], clock, scale, divisor,
                    lay.dev["table"])
-        self.k["totals_partial"][(lay.rows + 127) // 128, 128](
+        threads = min(lay.rows, 128)
+        self.k["totals_partial"][(lay.rows + threads - 1) // threads, threads](
             lay.dev["row_first"], lay.dev["row_system"], lay.dev["wb"], mask, w.wall_start,
             w.wall_ids, w.contact_force, w.velocity, self.lost, self.totals)
         # the view of as many columns as the rows have (totals_apply counts the walls by it)
