@@ -171,6 +171,17 @@ def test_h_grows_from_round_to_round(procedure):
     assert [r["cycle"] for r in results["cycles"]] == [1, 2, 3, 4, 5, 7, 8, 9, 12]
 
 
+def test_the_window_opens_restart_cycles_after_a_jump(procedure):
+    """restart_cycles = 1 with k_i = 2, k = 3, h = 1 over 12 cycles: cycles 1-5
+    computed, 6 extrapolated; cycle 7 computed, its settling after the jump left out:
+    the next window opens at its end and holds the k = 3 increments of cycles 8-10;
+    11 extrapolated, and 12 computed."""
+    _, results = procedure(cycles=12, extrapolated_cycles=1, restart_cycles=1)
+    jumps = [(j["from_cycle"], j["to_cycle"]) for j in results["extrapolations"]]
+    assert jumps == [(5, 6), (10, 11)]
+    assert [r["cycle"] for r in results["cycles"]] == [1, 2, 3, 4, 5, 7, 8, 9, 10, 12]
+
+
 def test_smoothed_increments_overlap_the_grains_less(procedure):
     """The same procedure with the extrapolated increments averaged over three radii
     (smoothing) and the contacts kept: the same computed cycles to the bit, then an
@@ -182,3 +193,24 @@ def test_smoothed_increments_overlap_the_grains_less(procedure):
     (a,), (b,) = plain["extrapolations"], smooth["extrapolations"]
     assert b["largest_overlap_before"] < a["largest_overlap_before"]
     assert b["largest_overlap_after"] < 1e-3
+
+
+def test_the_procedure_runs_on_the_quarter_model(tmp_path):
+    """The quarter of a cylinder (symmetry planes x = 0, y = 0) through the procedure
+    with smoothing, the excess relaxation and kept contacts: the relaxation converges
+    and every grain ends on its side of both planes."""
+    data = copy.deepcopy(SMALL)
+    data["walls"]["container"]["radius"] = 2 * RADIUS
+    data["walls"]["symmetry"] = [{"axis": "x"}, {"axis": "y"}]
+    data["protocol"].update({"cycles": 6, "extrapolation": "shenton", "initial_cycles": 2,
+                             "computed_cycles": 2, "extrapolated_cycles": 2,
+                             "smoothing": 3.0, "relaxation": "excess",
+                             "keep_contacts": True})
+    data["output"]["figures"] = False
+    out = tmp_path / "run"
+    results = execute(validate(data), out, show_progress=False, echo=lambda *a: None)
+    (jump,) = results["extrapolations"]
+    assert (jump["from_cycle"], jump["to_cycle"]) == (4, 6)
+    assert jump["relaxed"] and jump["largest_overlap_after"] < 1e-2
+    arrays, _, _, _ = checkpoint.read(out / "checkpoints" / checkpoint.LATEST)
+    assert np.all(arrays["grains/positions"][:, :2] > 0.0)

@@ -93,6 +93,11 @@ class CyclicSettings(SettleSettings):
                               "extrapolation; >= 2", ge=2)
     extrapolated_cycles: Int = _f(10, "h: cycles extrapolated in the first round; >= 1",
                                   ge=1)
+    restart_cycles: Int = _f(
+        0, "computed cycles after each jump before the next round's window opens: the "
+        "bed's own response to the jump (its first cycle settles more) is then left out "
+        "of the next fit, and each later round computes computed_cycles + restart_cycles "
+        "cycles; 0: the window opens at the jump's end (Karrech); >= 0", ge=0)
     extrapolated_growth: Float = _f(
         1.0, "the factor h grows by from one round to the next, h_r = round(h g^r) for "
         "round r = 0, 1, ... (Karrech Sec. 5: the error falls as the cycles computed so "
@@ -319,7 +324,8 @@ class Cycles(ProtocolPhase):
                 "functional_after_J": result.functional_after}
         state["jumps"].append(jump)
         self._save_residual(engine, state)
-        state["round"] = [self._round_record(engine, k)]
+        state["round"] = [self._round_record(engine, k)] if p.restart_cycles == 0 else []
+        state["window_opens"] = state["cycle"] + p.restart_cycles
         self.protocol.log(
             f"cycles {jump['from_cycle']} -> {jump['to_cycle']} extrapolated ({law}): "
             f"settlement {1e3 * jump['settlement_m']:.4g} mm; relaxed in "
@@ -389,7 +395,8 @@ class Cycles(ProtocolPhase):
                "kinetic_J": e["kinetic"] + e["rotational"]}
         state["rows"].append(row)
         self._save_residual(engine, state)
-        if self.p.extrapolation != "none" and cycle >= self.p.initial_cycles:
+        if self.p.extrapolation != "none" and cycle >= state.get("window_opens",
+                                                                 self.p.initial_cycles):
             state.setdefault("round", []).append(self._round_record(engine, k))
         self.protocol.log(f"cycle {cycle}: settlement {1e3 * row['settlement_m']:.4g} mm, "
                           f"coordination {row['coordination']:.3f}")
