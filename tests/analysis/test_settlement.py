@@ -206,3 +206,20 @@ def test_smoothing_across_symmetry_planes_equals_the_whole_bed(rng, axes):
     whole = smooth_increments(np.concatenate(clouds), np.concatenate(values), length)
     got = smooth_increments(x, u, length, planes=[(a, 0.0) for a in axes])
     np.testing.assert_allclose(got, whole[:x.shape[0]], rtol=0, atol=1e-13)
+
+
+def test_a_window_clock_keeps_a_steady_trend_steady():
+    """A residual path that settles at a steady rate after a window opens late in the
+    loading (cycles 110-120 of 50 Hz cycles): Shenton's law on the window's own clock
+    (t = pT from the window's start, the procedure's fit_time = "window") extrapolates
+    the steady rate exactly (a = 0, b = the rate), while the law on the loading clock
+    without an intercept, tied to its zero at t = 0, bends the 80 extrapolated cycles
+    away from it, here backwards."""
+    rate = 0.0025e-3 / PERIOD                                  # [m/s], 0.0025 mm a cycle
+    cycles = np.arange(110, 121)
+    u = (rate * PERIOD * (cycles - 110))[:, None, None] * np.ones((1, 1, 3))
+    true = rate * PERIOD * 90
+    window = fit_residual(u, PERIOD * np.arange(11), "shenton")
+    assert window.extrapolate(PERIOD * 90)[0, 0] == pytest.approx(true, rel=1e-9)
+    loading = fit_residual(u, PERIOD * cycles, "shenton")
+    assert loading.extrapolate(PERIOD * 200)[0, 0] < u[-1, 0, 0]

@@ -182,6 +182,17 @@ def test_the_window_opens_restart_cycles_after_a_jump(procedure):
     assert [r["cycle"] for r in results["cycles"]] == [1, 2, 3, 4, 5, 7, 8, 9, 10, 12]
 
 
+def test_the_window_clock_is_the_fit_s_time(procedure):
+    """fit_time = "window": the same computed cycles to the bit, then an extrapolation
+    on the window's own clock, which differs from the loading clock's."""
+    _, loading = procedure()
+    _, window = procedure(fit_time="window")
+    assert window["cycles"] == loading["cycles"]
+    (a,), (b,) = loading["extrapolations"], window["extrapolations"]
+    assert (b["from_cycle"], b["to_cycle"]) == (5, 8) and b["relaxed"]
+    assert b["settlement_m"] != a["settlement_m"]
+
+
 def test_smoothed_increments_overlap_the_grains_less(procedure):
     """The same procedure with the extrapolated increments averaged over three radii
     (smoothing) and the contacts kept: the same computed cycles to the bit, then an

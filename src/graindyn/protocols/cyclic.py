@@ -93,6 +93,12 @@ class CyclicSettings(SettleSettings):
                               "extrapolation; >= 2", ge=2)
     extrapolated_cycles: Int = _f(10, "h: cycles extrapolated in the first round; >= 1",
                                   ge=1)
+    fit_time: Literal["loading", "window"] = _f(
+        "loading", "the time origin of Shenton's law in a round's fit: loading (t = pT "
+        "from the start of the cycles, the paper's t + pT) or window (t = pT from the "
+        "opening of the round's window, as if each round restarted the law: its log term "
+        "then describes the window's own decay instead of tying the fit to the law's "
+        "zero at the loading start)")
     restart_cycles: Int = _f(
         0, "computed cycles after each jump before the next round's window opens: the "
         "bed's own response to the jump (its first cycle settles more) is then left out "
@@ -288,10 +294,13 @@ class Cycles(ProtocolPhase):
         records = state["round"]
         period = 1.0 / p.frequency
         first = state["cycle"] - p.computed_cycles
-        times = period * np.arange(first, state["cycle"] + 1)
+        if p.fit_time == "loading":
+            times = period * np.arange(first, state["cycle"] + 1)
+        else:
+            times = period * np.arange(0, p.computed_cycles + 1)
         planned = round(p.extrapolated_cycles * p.extrapolated_growth ** len(state["jumps"]))
         ahead = min(planned, p.cycles - state["cycle"])
-        end = period * (state["cycle"] + ahead)
+        end = times[-1] + period * ahead
         law = p.extrapolation
         grains = np.array([r["positions"] for r in records])
         plates = np.array([r["plate"] for r in records])[:, None, :]
