@@ -50,7 +50,7 @@ import math
 import numpy as np
 from scipy.optimize import minimize
 
-from ..._jit import kernel
+from ..._jit import kernel, scalar
 from ...core.neighbors import min_image, rebuild
 from ...core.species import ContactModel
 from ...core.symmetry import MASKS, SymmetryPlanes, image_separation, rebuild_images
@@ -111,6 +111,14 @@ class Relaxation(NamedTuple):
     largest_contact_force: float
 
 
+@scalar
+def _separation(positions, i, j, periodic_flag, periodic_length):
+    """r_i - r_j [m] at ``positions``, the minimum image along periodic axes."""
+    return (min_image(positions[i, 0] - positions[j, 0], periodic_flag[0], periodic_length[0]),
+            min_image(positions[i, 1] - positions[j, 1], periodic_flag[1], periodic_length[1]),
+            min_image(positions[i, 2] - positions[j, 2], periodic_flag[2], periodic_length[2]))
+
+
 @kernel
 def functional(positions, reference, radii, masses, materials, youngs, gravity, loads, anchor,
                free,
@@ -138,21 +146,11 @@ def functional(positions, reference, radii, masses, materials, youngs, gravity, 
     for i in range(n):
         for k in range(start[i], start[i + 1]):
             j = partners[k]
-            dx = min_image(positions[i, 0] - positions[j, 0], periodic_flag[0],
-                           periodic_length[0])
-            dy = min_image(positions[i, 1] - positions[j, 1], periodic_flag[1],
-                           periodic_length[1])
-            dz = min_image(positions[i, 2] - positions[j, 2], periodic_flag[2],
-                           periodic_length[2])
+            dx, dy, dz = _separation(positions, i, j, periodic_flag, periodic_length)
             distance = math.sqrt(dx * dx + dy * dy + dz * dz)
             overlap = radii[i] + radii[j] - distance
             if excess:
-                ax = min_image(allowed[i, 0] - allowed[j, 0], periodic_flag[0],
-                               periodic_length[0])
-                ay = min_image(allowed[i, 1] - allowed[j, 1], periodic_flag[1],
-                               periodic_length[1])
-                az = min_image(allowed[i, 2] - allowed[j, 2], periodic_flag[2],
-                               periodic_length[2])
+                ax, ay, az = _separation(allowed, i, j, periodic_flag, periodic_length)
                 overlap -= max(0.0, radii[i] + radii[j] - math.sqrt(ax * ax + ay * ay + az * az))
             if overlap <= 0.0 or distance == 0.0:
                 continue
