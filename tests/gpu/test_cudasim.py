@@ -1,7 +1,8 @@
 """GPU kernels under the CUDA simulator: the device step, built from the CPU's
 own per-grain functions, follows the CPU step through contacts, device rebuilds of the
 neighbour lists, a moving wall, every integrator stage, the checks and a checkpoint
-moved from one backend to the other.  Needs numba-cuda (the test extra has it); no GPU
+moved from one backend to the other; ensembles, the run and sweep commands, and the
+silo protocol swept as one ensemble.  Needs numba-cuda (the test extra has it); no GPU
 is used.  The simulator is slow and single-threaded: every job of this module starts
 at once, in its own process (start_early), so that they share the machine's cores;
 each test then waits for its own."""
@@ -35,6 +36,7 @@ def _jobs(folder):
     jobs["lists"] = [str(SCRIPT.with_name("cudasim_lists.py"))]
     jobs["scenarios"] = [str(SCRIPT.with_name("cudasim_scenarios.py")), "60"]
     jobs["ensemble"] = [str(SCRIPT.with_name("cudasim_ensemble.py"))]
+    jobs["silo"] = [str(SCRIPT.with_name("cudasim_silo.py")), str(folder / "silo")]
     short = TINY.replace("max_time = 1e-3", "max_time = 4e-4")
     for backend in ("cpu", "gpu"):
         where = folder / f"sweep-{backend}"
@@ -297,3 +299,40 @@ def test_sweep_with_backend_gpu_runs_its_points_as_one_ensemble(simulated):
     a, b = results["gpu"]["reference"], results["gpu"]["restitution=0.6"]
     assert not np.isclose(a["energy_J"]["dissipated_normal"],
                           b["energy_J"]["dissipated_normal"], rtol=1e-3)
+
+
+def test_simulated_silo_follows_the_cpu_through_reinjection_jam_and_tap(simulated):
+    """Two tiny silos of examples/silo.toml (cudasim_silo.py: 16 disks, 144 steps each)
+    run with backend gpu as one ensemble, then each on backend cpu: the flowing one
+    (the example's hole) re-injects the disks that left above the packing
+    (Engine.relocate), the other lets no disk out, is found jammed and is tapped
+    (every wall a sinusoid for half a period, then put back).  Each ends with its
+    positions, velocities, spins, wall offsets and wall forces equal to the CPU's to
+    1e-10 relative, and the same steps, exits, avalanche records and end time."""
+    out = json.loads(simulated("silo").strip().splitlines()[-1])
+    flowing, jammed = out["runs"]["reference/seed-1"], out["runs"]["hole=0.00491/seed-1"]
+    for run in (flowing, jammed):
+        assert run["steps"][0] == run["steps"][1] > 100
+        for key in ("exited", "avalanches", "unfinished", "time_s"):
+            assert run[key][0] == run[key][1], key
+        for name, difference in run["differ"].items():
+            assert difference <= 1e-10, name
+    assert flowing["exited"][0] > 0 and not flowing["avalanches"][0]
+    (jam,), tap = jammed["avalanches"][0], jammed["unfinished"][0]
+    assert jam["first"] and jam["size"] == 0 and jammed["exited"][0] == 0
+    # the tap started at the jam and ran its half period (1000 Hz) to the end
+    assert not tap["first"] and tap["start_s"] == jam["end_s"]
+    assert tap["duration_s"] >= 0.5e-3
+
+
+def test_sweep_with_backend_gpu_runs_its_silos_as_one_ensemble(simulated):
+    """`sweep.run` of the two tiny silos (cudasim_silo.py) with backend gpu: both runs
+    go through one GPU ensemble of two members, finish, and the silo's sweep summary
+    is written."""
+    out = json.loads(simulated("silo").strip().splitlines()[-1])
+    assert 2 in out["ensembles"] and max(out["ensembles"]) == 2
+    log = "\n".join(out["log"])
+    assert "running 2 run(s) with backend gpu together, as one GPU ensemble" in log
+    assert "rounds of chunks" in log and "2 of 2 runs finished" in log
+    assert out["exit_code"] == 0
+    assert {"silo_sweep.md", "silo_sweep.json", "summary.csv"} <= set(out["summary"])

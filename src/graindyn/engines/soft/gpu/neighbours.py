@@ -36,8 +36,10 @@ _KERNELS = {}
 
 
 def launch(kernel, n, *args):
-    """Run ``kernel`` with one thread per item for n items."""
-    kernel[max(1, (n + ROW - 1) // ROW), ROW](*args)
+    """Run ``kernel`` with one thread per item for n items, in blocks of at most ROW
+    threads and no more threads than items."""
+    threads = max(1, min(n, ROW))
+    kernel[max(1, (n + threads - 1) // threads), threads](*args)
 
 
 def kernels():
@@ -232,14 +234,16 @@ def kernels():
 
     @cuda.jit
     def block_scan(a, sums):
-        """Inclusive prefix sum of each block of a; the block totals go to sums."""
+        """Inclusive prefix sum of each block (at most ROW threads) of a; the block
+        totals go to sums."""
         tmp = cuda.shared.array(ROW, int64)
         t = cuda.threadIdx.x
+        width = cuda.blockDim.x
         i = cuda.grid(1)
         tmp[t] = a[i] if i < a.size else 0
         cuda.syncthreads()
         step = 1
-        while step < ROW:
+        while step < width:
             v = tmp[t - step] if t >= step else 0
             cuda.syncthreads()
             tmp[t] += v
@@ -247,7 +251,7 @@ def kernels():
             step *= 2
         if i < a.size:
             a[i] = tmp[t]
-        if t == ROW - 1:
+        if t == width - 1:
             sums[cuda.blockIdx.x] = tmp[t]
 
     @cuda.jit
@@ -296,17 +300,19 @@ class DeviceNeighbours:
         return sum(a.nbytes for a in arrays)
 
     def scan(self, a, level=0):
-        """In-place inclusive prefix sum of the integer device array a (exact)."""
-        blocks = (a.size + ROW - 1) // ROW
+        """In-place inclusive prefix sum of the integer device array a (exact), in
+        blocks of ROW items (one block of a.size threads when a is shorter)."""
+        threads = max(1, min(a.size, ROW))
+        blocks = (a.size + threads - 1) // threads
         if len(self._sums) == level:
             self._sums.append(cuda.device_array(0, np.int64))
         if self._sums[level].size < blocks:
             self._sums[level] = cuda.device_array(blocks, np.int64)
         sums = self._sums[level][:blocks]
-        self.k["block_scan"][blocks, ROW](a, sums)
+        self.k["block_scan"][blocks, threads](a, sums)
         if blocks > 1:
             self.scan(sums, level + 1)
-            self.k["add_offsets"][blocks, ROW](a, sums)
+            self.k["add_offsets"][blocks, threads](a, sums)
 
     def _cells(self, due):
         """The cell-start table for the grids just built, each due system's cells after
