@@ -258,3 +258,5 @@ def test_only_the_excess_overlap_is_relaxed(one_thread):
     assert 2 * r - kept.positions[1, 2] > rest_overlap          # still loaded
     assert 2 * r - emptied.positions[1, 2] < 0.2 * rest_overlap  # emptied
     np.testing.assert_array_equal(kept.positions[0], allowed[0])
+    with pytest.raises(ValueError, match="allowed must be the"):
+        relax(state, [DIORITE], allowed=allowed[:1])

@@ -376,8 +376,10 @@ def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), l
 
     reference = np.ascontiguousarray(state.positions, dtype=np.float64).copy()
     excess = allowed is not None
-    allowed = reference if allowed is None else \
-        np.ascontiguousarray(allowed, dtype=np.float64).reshape(n, 3)
+    allowed = reference if allowed is None else np.ascontiguousarray(allowed, dtype=np.float64)
+    if allowed.shape != (n, 3):
+        raise ValueError(f"allowed must be the ({n}, 3) positions [m] of a configuration, "
+                         f"got {allowed.shape}")
     variable = np.zeros((n, 3), bool)
     variable[free == 1, :state.dim] = True
     length = float(radii.mean())
