@@ -86,6 +86,7 @@ NOT_OFFERED = {
     ("event_driven", "test_stack_contact_follows_the_conventions"): _LASTING,
     ("event_driven", "test_relocated_grain_is_accounted_for"): _LASTING,
     ("event_driven", "test_relocated_grain_forgets_its_contacts"): _LASTING,
+    ("event_driven", "test_kick_keeps_the_contacts"): _LASTING,
     ("event_driven", "test_snapshot_and_restore_repeat_a_run_to_the_bit"):
         "it asks for grains in contact at a pause, which hard grains are only at "
         "instants; the event-driven resume is tested in tests/engine/event_driven",
@@ -335,6 +336,41 @@ def test_relocated_grain_forgets_its_contacts(build, support):
     assert c.normal_force.size == 1 and c.normal_force[0] > 0.5 * MASS * G
     assert np.linalg.norm(c.tangential_force[0]) < 1e-6 * mu * MASS * G
     assert np.linalg.norm(engine.state.velocities[grain, :2]) < 1e-9
+
+
+def test_kick_adds_a_velocity_in_flight(build):
+    """A falling grain kicked sideways by dv mid-flight moves on at dv along x while its
+    fall goes on as before (z = -g t^2/2); bad kicks are refused with their names."""
+    engine = build([[0.0, 0.0, 0.0]])
+    engine.run(time=0.1)
+    t1 = engine.time
+    engine.kick([0], [0.2, 0.0, 0.0])
+    engine.run(time=0.1)
+    t = engine.time
+    assert engine.state.positions[0, 0] == pytest.approx(0.2 * (t - t1), rel=1e-9)
+    assert engine.state.positions[0, 2] == pytest.approx(-0.5 * G * t**2, rel=1e-9)
+    with pytest.raises(ValueError, match="kick"):
+        engine.kick([1], [0.1, 0.0, 0.0])
+    with pytest.raises(ValueError, match="delta_v"):
+        engine.kick([0], [np.nan, 0.0, 0.0])
+
+
+def test_kick_keeps_the_contacts(build):
+    """A grain sliding on the floor carries a loaded friction spring (|F_t| = mu F_n);
+    kicked along its sliding, it keeps the contact and its force."""
+    mu = 0.5
+    engine = build([[0.0, 0.0, R]], walls=[floor()], velocities=[[0.05, 0.0, 0.0]],
+                   restitution=0.5, friction=mu)
+    engine.run(time=2e-3)
+    before = engine.wall_contacts().tangential_force[0].copy()
+    engine.kick([0], [0.01, 0.0, 0.0])
+    after = engine.wall_contacts()
+    assert after.grain.size == 1
+    np.testing.assert_allclose(after.tangential_force[0], before, rtol=1e-12)
+    engine.run(time=2e-4)
+    c = engine.wall_contacts()
+    assert np.linalg.norm(c.tangential_force[0]) == pytest.approx(
+        mu * abs(c.normal_force[0]), rel=1e-6)
 
 
 def test_set_motion_moves_a_wall_from_where_it_is(build):

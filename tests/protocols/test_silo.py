@@ -146,6 +146,25 @@ def test_jam_detector_and_avalanche_bookkeeping_on_a_scripted_sequence():
     assert last["start_s"] == 1.0 and last["duration_s"] == pytest.approx(0.2)
 
 
+def test_a_parallel_tap_starts_the_disks_with_the_walls():
+    """tap_start "parallel": the free disks get the walls' starting velocity 2 pi nu A
+    upwards (held ones none); "walls" leaves the disks as they are."""
+    for start, kicked in (("parallel", True), ("walls", False)):
+        protocol = SimpleNamespace(p=validate(small(tap_start=start)).protocol,
+                                   vessel=None, log=lambda message: None)
+        engine = _Engine()
+        engine.walls.offset = {name: np.zeros(3) for name in
+                               ("xlo", "xhi", "floor_left", "floor_right", "gate")}
+        engine.state.fixed = np.array([0, 1, 0], np.int8)
+        engine.kicks = []
+        engine.kick = lambda idx, dv: engine.kicks.append((list(idx), tuple(dv)))
+        state = {"current": {"start_s": 0.0, "size": 0, "first": True}}
+        Discharge(protocol).tap(engine, state)
+        p = protocol.p
+        expected = [([0, 2], (0.0, 2 * np.pi * p.tap_frequency * p.tap_amplitude, 0.0))]
+        assert engine.kicks == (expected if kicked else [])
+
+
 def test_cumulative_is_eq_39():
     """w(s) = number of avalanches of size >= s over the number of non-null ones; sizes
     1 + floor(X), X exponential of scale 30, have P(size >= s) = exp(-(s - 1)/30)

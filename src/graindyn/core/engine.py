@@ -146,7 +146,7 @@ class ImageContacts(NamedTuple):
 class Engine(Protocol):
     """What the layers above an engine may use of it.  The engine owns its arrays:
     the layers above read ``state`` and ``walls`` and change them only through the
-    methods here (relocate, set_motion, set_servo, place_wall, gravity), which keep
+    methods here (relocate, kick, set_motion, set_servo, place_wall, gravity), which keep
     the engine's own bookkeeping (contact histories, lists, wall references) right.
 
     Walls (``wall`` arguments) are given by index or by name (Walls.index).
@@ -215,6 +215,11 @@ class Engine(Protocol):
         grains that left a silo.  The grains arrive without any memory of the contacts
         they had (their tangential springs and other contact history are forgotten) and
         meet their new neighbours and walls from the next step on."""
+
+    def kick(self, indices, delta_v) -> None:
+        """Add ``delta_v`` ((3,) or (K, 3) [m/s]) to the velocities of grains ``indices``
+        at once, keeping their places, spins and contacts (a tap that sets the whole
+        material moving with its container)."""
 
     def hold(self, indices) -> None:
         """Stop grains ``indices`` and hold them in place: fixed obstacles to the others,

@@ -196,6 +196,21 @@ class State:
             getattr(self, name)[idx] = value
         return idx
 
+    def kick(self, indices, delta_v) -> np.ndarray:
+        """Add ``delta_v`` ((3,) or (K, 3) [m/s]) to the velocities of grains ``indices``,
+        leaving their places and spins: the grains' side of every engine's kick.
+        Returns the indices (K,) int64; ValueError naming what does not fit."""
+        idx = np.asarray(indices, dtype=np.int64).reshape(-1)
+        if idx.size == 0:
+            return idx
+        if idx.min() < 0 or idx.max() >= self.n or np.unique(idx).size != idx.size:
+            raise ValueError(f"kick needs distinct grain indices in 0..{self.n - 1}")
+        dv = np.broadcast_to(np.asarray(delta_v, dtype=np.float64), (idx.size, 3))
+        if not np.all(np.isfinite(dv)) or (self.dim == 2 and np.any(dv[:, 2] != 0)):
+            raise ValueError("kick: delta_v must be finite, (3,) or (K, 3), with zero z in 2D")
+        self.velocities[idx] += dv
+        return idx
+
     def stop(self, indices) -> np.ndarray:
         """Fix grains ``indices`` where they are, at rest (every engine's hold); returns
         the indices (K,) int64, ValueError when one is out of range."""

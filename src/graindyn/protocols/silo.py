@@ -20,7 +20,9 @@ third segment, the gate.  Phases:
   - declares the silo jammed when the largest speed is below v0/c and no disk has left
     for c t0 (c = ``jam_factor``), ends the avalanche (the disks that left since the
     last tap: its size s, 0 for a null avalanche) and taps: every wall of the silo moves
-    vertically as y = A sin(2 pi nu t) for half a period, then stops;
+    vertically as y = A sin(2 pi nu t) for half a period, then stops (``tap_start``:
+    the disks start at rest, or with the walls' velocity, the whole material moving in
+    parallel with the silo);
 
   until ``avalanches`` avalanches after the first (the initial discharge, kept apart)
   or ``max_time`` of simulated time.
@@ -77,6 +79,10 @@ class SiloSettings(SettleSettings):
                             le=1)
     tap_amplitude: Float = _f(0.006, "tap amplitude A [m] (0.6 cm); > 0", gt=0)
     tap_frequency: Float = _f(8.0, "tap frequency nu [Hz]; > 0", gt=0)
+    tap_start: Literal["walls", "parallel"] = _f(
+        "walls", "how a tap starts: the walls at the sinusoid's speed 2 pi nu A and the "
+        "disks at rest, pushed by the floor (walls); or the disks too, the whole material "
+        "moving in parallel with the silo (parallel)")
     avalanches: Int = _f(100, "avalanches to record after the first [-]; >= 1", ge=1)
     jam_pictures: Int = _f(10, "jammed configurations written (VTK with the arch marked "
                            "and a picture of the force network), the first ones [-]; >= 0",
@@ -354,8 +360,13 @@ class Discharge(ProtocolPhase):
                      f"arch of {len(arch)} disks")
 
     def tap(self, engine, state):
-        """Every wall of the silo moves as y = A sin(2 pi nu t) for half a period."""
+        """Every wall of the silo moves as y = A sin(2 pi nu t) for half a period; with
+        ``tap_start`` "parallel" every free disk starts with the walls' velocity
+        2 pi nu A upwards (Engine.kick), so the floor does not strike the packing."""
         p = self.p
+        if p.tap_start == "parallel":
+            free = np.flatnonzero(engine.state.fixed == 0)
+            engine.kick(free, (0.0, 2.0 * math.pi * p.tap_frequency * p.tap_amplitude, 0.0))
         state["tap_from"] = [engine.walls.offset[k].tolist() for k in self.silo_walls(engine)]
         for k in self.silo_walls(engine):
             engine.set_motion(k, Motion("sinusoid", direction=(0.0, 1.0, 0.0),

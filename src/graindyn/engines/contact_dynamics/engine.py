@@ -394,6 +394,11 @@ class ContactDynamics:
         chosen[idx] = True
         self._forget(chosen)
 
+    def kick(self, indices, delta_v):
+        """Add ``delta_v`` [m/s] to the velocities of grains ``indices``
+        (engine.Engine.kick)."""
+        self.state.kick(indices, delta_v)
+
     def hold(self, indices):
         """Stop grains ``indices`` and hold them in place (engine.Engine.hold): obstacles
         of infinite mass to the others, out of the energies, until ``release``."""

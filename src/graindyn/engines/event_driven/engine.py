@@ -416,6 +416,11 @@ class EventDriven:
         predicts every event afresh."""
         self.state.move(indices, positions, velocities, angular_velocities)
 
+    def kick(self, indices, delta_v):
+        """Add ``delta_v`` [m/s] to the velocities of grains ``indices``
+        (engine.Engine.kick)."""
+        self.state.kick(indices, delta_v)
+
     def hold(self, indices):
         """Stop grains ``indices`` and hold them in place (engine.Engine.hold): obstacles
         of infinite mass to the others, out of the energies, until ``release``."""

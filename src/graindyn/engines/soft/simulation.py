@@ -717,6 +717,12 @@ class Simulation:
             for name in ("history", "force", "torque_j" if partner == "partners" else "torque"):
                 arrays[name][:m][stale] = 0.0
 
+    def kick(self, indices, delta_v):
+        """Add ``delta_v`` [m/s] to the velocities of grains ``indices`` (engine.Engine.kick):
+        their contacts keep their history; the integrator starts afresh."""
+        if self.state.kick(indices, delta_v).size:
+            self.reset_integrator_history()
+
     def hold(self, indices):
         """Stop grains ``indices`` and hold them where they are (engine.Engine.hold): they
         become fixed obstacles, out of the energies, until ``release``."""
