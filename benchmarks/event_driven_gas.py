@@ -3,6 +3,7 @@ on one dilute cooling gas.
 
     python benchmarks/event_driven_gas.py rates [--grains 10000 100000] [--collisions 20]
     python benchmarks/event_driven_gas.py versus [--grains 2000] [--time 0.05]
+    python benchmarks/event_driven_gas.py peer EDMD_DIR [--cells 14 29] [--collisions 20]
 
 rates: an elastic gas of smooth spheres (3D) or disks (2D) of diameter 1 mm at
 packing fractions 0.05 and 0.3 in a periodic box, inserted at random and numbered cell
@@ -16,6 +17,17 @@ smooth grains, T0 = 1e-9 J) with --grains grains, built once, then run for --tim
 simulated seconds by the event-driven engine and by the soft engine (Hertz with Tsuji's
 damping for e = 0.9, no friction, the suggested time step); printed: the wall time of
 each, the collisions each counted, the final temperatures, and the ratio of wall times.
+
+peer: side by side with Smallenburg's EDMD codes (Eur. Phys. J. E 45, 22 (2022),
+github.com/FSmallenburg/EDMD, a checkout in EDMD_DIR; C, built here with its own
+Makefile flags): the elastic monodisperse 3D gas of N = 4 n^3 spheres (n = --cells) at
+packing fractions 0.05 and 0.3, which EDMD starts from an fcc crystal.  Each of its codes
+(Cell: cell lists; Single: neighbour lists, one event per sphere) is compiled with those
+settings and no thermostat, and run twice, to 5 and to 5 + --collisions collisions per
+sphere (Enskog's rate); its rate is the difference of collisions over the difference of
+wall times, so start-up and melting are left out.  graindyn's engine runs the same N and
+packing fraction as `rates` builds it, timed the same way; printed per state: each
+code's collisions per second and graindyn's over the best of EDMD's.
 """
 import argparse
 import math
@@ -108,6 +120,83 @@ def versus(n, duration):
           f"{peak_memory()}")
 
 
+EDMD_SETTINGS = {"initialconfig": "1", "makesnapshots": "0", "usethermostat": "0"}
+
+
+def edmd_binary(source, code, cells, phi, maxtime, build):
+    """Compile EDMD's ``code`` (Cell or Single) from ``source`` into ``build`` with
+    N = 4 cells^3, packing fraction ``phi``, no thermostat, one report at the end."""
+    import re
+    import subprocess
+
+    text = (source / code / f"md{code}.c").read_text()
+    settings = {**EDMD_SETTINGS, "N": str(4 * cells**3), "packfrac": repr(phi),
+                "maxtime": repr(maxtime), "writeinterval": repr(maxtime)}
+    for name, value in settings.items():
+        text, count = re.subn(rf"^((?:const )?(?:int|double) {name}\s*=\s*)[^;]+;",
+                              rf"\g<1>{value};", text, count=1, flags=re.M)
+        if count != 1:
+            raise SystemExit(f"EDMD {code}: no global {name} to set")
+    folder = build / f"{code}_{cells}_{phi}_{maxtime:.6g}"
+    folder.mkdir(parents=True, exist_ok=True)
+    for f in (source / code).iterdir():
+        if f.suffix in (".h", ".c"):
+            (folder / f.name).write_text(f.read_text())
+    (folder / f"md{code}.c").write_text(text)
+    subprocess.run(["gcc", "-Wall", "-Ofast", "-funroll-loops", "-march=native",
+                    f"md{code}.c", "-o", "md", "-lm"], cwd=folder, check=True,
+                   capture_output=True)
+    return folder
+
+
+def edmd_run(folder):
+    """Run a built EDMD code: (wall s, collisions)."""
+    import subprocess
+
+    start = time.perf_counter()
+    out = subprocess.run(["./md"], cwd=folder, check=True, capture_output=True,
+                         text=True).stdout
+    wall = time.perf_counter() - start
+    counts = [int(line.split("Collisions:")[1].split(",")[0])
+              for line in out.splitlines() if "Collisions:" in line]
+    return wall, counts[-1]
+
+
+def peer(source, cells, per_grain):
+    import pathlib
+    import tempfile
+
+    from graindyn.analysis.gas import enskog_collision_rate
+
+    source = pathlib.Path(source)
+    build = pathlib.Path(tempfile.mkdtemp(prefix="edmd_"))
+    print("phi grains code collisions wall_s collisions_per_s graindyn_over_best_edmd")
+    for n in cells:
+        grains = 4 * n**3
+        for phi in (0.05, 0.3):
+            # EDMD's reduced units: sigma = m = kT = 1
+            rate = enskog_collision_rate(6 * phi / math.pi, 1.0, 1.0, 1.0, phi, 3)
+            warm, total = 5 * 2 / rate, (5 + per_grain) * 2 / rate
+            best = 0.0
+            for code in ("Cell", "Single"):
+                (w1, c1), (w2, c2) = (edmd_run(edmd_binary(source, code, n, phi, t, build))
+                                      for t in (warm, total))
+                best = max(best, (c2 - c1) / (w2 - w1))
+                print(f"{phi} {grains} EDMD-{code} {c2 - c1} {w2 - w1:.3f} "
+                      f"{(c2 - c1) / (w2 - w1):.4g}", flush=True)
+            engine, volume = gas(grains, phi, 3)
+            rate = enskog_collision_rate(grains / volume, 1e-3, 1e-9, engine.state.masses[0],
+                                         phi, 3)
+            engine.run(time=5 * 2 / rate)
+            c0 = engine.collisions
+            start = time.perf_counter()
+            engine.run(time=per_grain * 2 / rate)
+            wall = time.perf_counter() - start
+            c = engine.collisions - c0
+            print(f"{phi} {grains} graindyn {c} {wall:.3f} {c / wall:.4g} "
+                  f"{c / wall / best:.3f}", flush=True)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     sub = parser.add_subparsers(dest="what", required=True)
@@ -117,11 +206,18 @@ def main():
     v = sub.add_parser("versus")
     v.add_argument("--grains", type=int, default=2000)
     v.add_argument("--time", type=float, default=0.05)
+    e = sub.add_parser("peer")
+    e.add_argument("edmd", help="a checkout of github.com/FSmallenburg/EDMD")
+    e.add_argument("--cells", type=int, nargs="+", default=[14, 29],
+                   help="N = 4 n^3 spheres (14: 10 976, 29: 97 556)")
+    e.add_argument("--collisions", type=float, default=20.0)
     args = parser.parse_args()
     if args.what == "rates":
         rates(args.grains, args.collisions)
-    else:
+    elif args.what == "versus":
         versus(args.grains, args.time)
+    else:
+        peer(args.edmd, args.cells, args.collisions)
 
 
 if __name__ == "__main__":
