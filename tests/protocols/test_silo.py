@@ -83,16 +83,20 @@ def test_a_small_silo_flows_jams_is_tapped_and_flows_again(tmp_path):
 
 class _Engine(SimpleNamespace):
     """What Discharge's jam check and bookkeeping read of an engine: time, the grains'
-    velocities and masses, walls by name, set_motion."""
+    velocities, masses and holds, walls by name, set_motion, kick."""
 
     def __init__(self):
         walls = SimpleNamespace(index=lambda name: name)
-        super().__init__(time=0.0, walls=walls, motions=[],
+        super().__init__(time=0.0, walls=walls, motions=[], kicks=[],
                          state=SimpleNamespace(velocities=np.zeros((3, 3)),
-                                               masses=np.full(3, 2.0)))
+                                               masses=np.full(3, 2.0),
+                                               fixed=np.zeros(3, np.int8)))
 
     def set_motion(self, wall, motion):
         self.motions.append((wall, motion.kind))
+
+    def kick(self, indices, delta_v):
+        self.kicks.append((list(indices), tuple(delta_v)))
 
 
 def test_jam_detector_and_avalanche_bookkeeping_on_a_scripted_sequence():
@@ -156,8 +160,6 @@ def test_a_parallel_tap_starts_the_disks_with_the_walls():
         engine.walls.offset = {name: np.zeros(3) for name in
                                ("xlo", "xhi", "floor_left", "floor_right", "gate")}
         engine.state.fixed = np.array([0, 1, 0], np.int8)
-        engine.kicks = []
-        engine.kick = lambda idx, dv: engine.kicks.append((list(idx), tuple(dv)))
         state = {"current": {"start_s": 0.0, "size": 0, "first": True}}
         Discharge(protocol).tap(engine, state)
         p = protocol.p

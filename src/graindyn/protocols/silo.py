@@ -80,9 +80,9 @@ class SiloSettings(SettleSettings):
     tap_amplitude: Float = _f(0.006, "tap amplitude A [m] (0.6 cm); > 0", gt=0)
     tap_frequency: Float = _f(8.0, "tap frequency nu [Hz]; > 0", gt=0)
     tap_start: Literal["walls", "parallel"] = _f(
-        "walls", "how a tap starts: the walls at the sinusoid's speed 2 pi nu A and the "
-        "disks at rest, pushed by the floor (walls); or the disks too, the whole material "
-        "moving in parallel with the silo (parallel)")
+        "parallel", "how a tap starts: the disks with the walls' velocity 2 pi nu A, the "
+        "whole material moving in parallel with the silo (parallel, Pérez's words); or "
+        "the walls alone, the floor striking the disks at rest (walls)")
     avalanches: Int = _f(100, "avalanches to record after the first [-]; >= 1", ge=1)
     jam_pictures: Int = _f(10, "jammed configurations written (VTK with the arch marked "
                            "and a picture of the force network), the first ones [-]; >= 0",
