@@ -113,7 +113,9 @@ def test_hard_grains_deposited_with_the_tc_model_come_to_rest():
     potential energy released.  A floor then set moving at once under the bed (a jump
     of its velocity) shakes it: the one-instant cascades of rough grains wedged between
     the floor and a side wall end (a simultaneous collision is smooth under TC), and no
-    grain goes through the floor or into another."""
+    grain goes through the floor or into another.  So with the speed model, where a
+    collision at the very instant of either grain's previous one is smooth; without a
+    treatment ("none") the cascade stops the run with a SimulationError."""
     from graindyn.analysis.energy import energy_budget
     from graindyn.protocols.prepare import BoxRegion, random_insertion
 
@@ -135,28 +137,44 @@ def test_hard_grains_deposited_with_the_tc_model_come_to_rest():
     d = np.linalg.norm(state.positions[:, None] - state.positions[None], axis=2)
     np.fill_diagonal(d, np.inf)
     assert d.min() >= 2 * RHO * (1 - 1e-9)
+    settled = state.positions.copy(), state.velocities.copy(), \
+        state.angular_velocities.copy()
     # a floor set moving at once under the bed of touching grains
-    engine.set_motion("zlo", gd.Motion("sinusoid", direction=(0, 0, 1), amplitude=5e-4,
-                                       frequency=50.0))
-    events = engine.events
-    assert engine.run(time=0.02) == "done"
-    assert engine.events > events
-    assert np.all(state.positions[:, 2] - engine.walls.offset[4, 2] >= RHO * (1 - 1e-6))
-    d = np.linalg.norm(state.positions[:, None] - state.positions[None], axis=2)
-    np.fill_diagonal(d, np.inf)
-    assert d.min() >= 2 * RHO * (1 - 1e-9)
-    assert energy_budget(engine)["kinetic"] > 100 * end["kinetic"]      # it moves
+    for model in ("tc", "speed", "none"):
+        if model != "tc":
+            state = gd.State.create(settled[0], radii, 1000.0, velocities=settled[1])
+            state.angular_velocities[:] = settled[2]
+            engine = EventDriven(state, [gd.Material(restitution=0.5)],
+                                 walls=gd.box((0, 0, 0), (side, side, 40 * RHO)),
+                                 tangential_restitution=0.0, collapse=model,
+                                 collapse_speed=0.01)
+        engine.set_motion("zlo", gd.Motion("sinusoid", direction=(0, 0, 1),
+                                           amplitude=5e-4, frequency=50.0))
+        if model == "none":
+            with pytest.raises(gd.SimulationError, match="collapse"):
+                engine.run(time=0.02)
+            continue
+        events = engine.events
+        assert engine.run(time=0.02) == "done"
+        assert engine.events > events
+        assert np.all(state.positions[:, 2] - engine.walls.offset[4, 2] >= RHO * (1 - 1e-6))
+        d = np.linalg.norm(state.positions[:, None] - state.positions[None], axis=2)
+        np.fill_diagonal(d, np.inf)
+        assert d.min() >= 2 * RHO * (1 - 1e-9)
+        assert energy_budget(engine)["kinetic"] > 100 * end["kinetic"]      # it moves
 
 
 def test_tc_restitutions():
     """Under TC a collision within t_c of either grain's last one is elastic (e_n = 1)
     and keeps its tangential restitution; one at the same instant is smooth too
-    (e_s = 1); older ones keep both.  The speed model leaves e_s as it is."""
+    (e_s = 1); older ones keep both.  The speed model keeps e_s, but for a collision
+    at the very instant of either grain's previous one (smooth, e_s = 1)."""
     from graindyn.engines.event_driven.collision import SPEED, TC, restitution_now
 
     t_c = 1e-4
     assert restitution_now(0.5, 0.0, TC, 1.0, 1.0, 1.0, 0.5 * t_c, t_c) == (1.0, 0.0)
     assert restitution_now(0.5, 0.0, TC, 1.0, 1.0, 0.0, 0.5 * t_c, t_c) == (1.0, 1.0)
     assert restitution_now(0.5, 0.0, TC, 1.0, 1.0, 2 * t_c, 3 * t_c, t_c) == (0.5, 0.0)
-    e_n, e_s = restitution_now(0.5, -0.5, SPEED, 0.25, 1.0, 0.0, 0.0, t_c)
+    e_n, e_s = restitution_now(0.5, -0.5, SPEED, 0.25, 1.0, 1e-12, 0.5, t_c)
     assert e_n == pytest.approx(1 - 0.5 * 0.25**0.75) and e_s == -0.5
+    assert restitution_now(0.5, -0.5, SPEED, 2.0, 1.0, 0.5, 0.0, t_c) == (0.5, 1.0)

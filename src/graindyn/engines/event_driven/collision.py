@@ -46,7 +46,10 @@ def restitution_now(e0, es0, model, approach_speed, collapse_speed, since_a, sin
     model NONE: (e0, es0).  SPEED: e_n = 1 - (1 - e0) (u / u0)^(3/4) below u0 =
     ``collapse_speed`` [m/s] and e0 above it, u = ``approach_speed`` [m/s] (the
     impact-speed dependence Bizon et al. 1998 and McNamara & Falcon 2004 use for
-    vibrated beds): e_n tends to 1 as u tends to 0, as Perez asks; e_s = es0.
+    vibrated beds): e_n tends to 1 as u tends to 0, as Perez asks; e_s = es0, but 1
+    (smooth) for a collision at the very instant of the previous one of either grain
+    (``since_a`` or ``since_b`` zero), which ends the one-instant cascade of a rough
+    grain wedged between a moving wall and another (below).
     TC (Luding & McNamara 1998): when either grain collided less than
     ``contact_duration`` t_c [s] before (``since_a``, ``since_b`` [s]: the times since
     their last collisions), the normal part is elastic, e_n = 1, and the tangential
@@ -57,9 +60,10 @@ def restitution_now(e0, es0, model, approach_speed, collapse_speed, since_a, sin
     smooth window would leave the spin of hopping grains undamped, and a bed would
     never come to rest.  (e0, es0) otherwise."""
     if model == SPEED:
+        e_s = 1.0 if min(since_a, since_b) == 0.0 else es0
         if approach_speed < collapse_speed:
-            return 1.0 - (1.0 - e0) * (approach_speed / collapse_speed) ** 0.75, es0
-        return e0, es0
+            return 1.0 - (1.0 - e0) * (approach_speed / collapse_speed) ** 0.75, e_s
+        return e0, e_s
     if model == TC:
         if since_a < contact_duration or since_b < contact_duration:
             if min(since_a, since_b) < SAME_INSTANT * contact_duration:

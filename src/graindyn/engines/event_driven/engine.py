@@ -275,8 +275,8 @@ class EventDriven:
                 f"inelastic collapse at t = {self.time:.9g} s: {ev.SAME_TIME_LIMIT} "
                 "collisions at one instant, a cluster whose collisions never end (a "
                 "collapse: choose collapse = 'tc' or 'speed'), or touching rough grains "
-                "that a wall drives at once (choose collapse = 'tc': its simultaneous "
-                "collisions are smooth)")
+                "that a wall drives at once (choose collapse = 'tc' or 'speed': their "
+                "simultaneous collisions are smooth)")
         ev.synchronise(self._grains(), end)
         self.clock[ev.TIME] = end
         self.state.time = end
