@@ -66,25 +66,31 @@ def gas(n, phi, dim, restitution=None, seed=2, temperature=1e-9, radius=5e-4):
     return engine, side**dim
 
 
-def rates(grains, per_grain):
+def timed_gas(n, phi, dim, per_grain):
+    """The gas of ``gas`` run 5 collisions per grain untimed, then ``per_grain`` timed
+    (Enskog's rate): (collisions, wall s, events per collision)."""
     from graindyn.analysis.gas import enskog_collision_rate
 
+    engine, volume = gas(n, phi, dim)
+    rate = enskog_collision_rate(n / volume, 1e-3, 1e-9, engine.state.masses[0], phi, dim)
+    engine.run(time=5 * 2 / rate)
+    c0, e0 = engine.collisions, engine.events
+    start = time.perf_counter()
+    engine.run(time=per_grain * 2 / rate)
+    wall = time.perf_counter() - start
+    c = engine.collisions - c0
+    return c, wall, (engine.events - e0) / c
+
+
+def rates(grains, per_grain):
     print("dim phi grains collisions wall_s collisions_per_s events_per_collision "
           "peak_rss_bytes")
     for n in grains:
         for dim in (3, 2):
             for phi in (0.05, 0.3):
-                engine, volume = gas(n, phi, dim)
-                s = engine.state
-                rate = enskog_collision_rate(n / volume, 1e-3, 1e-9, s.masses[0], phi, dim)
-                engine.run(time=5 * 2 / rate)
-                c0, e0 = engine.collisions, engine.events
-                start = time.perf_counter()
-                engine.run(time=per_grain * 2 / rate)
-                wall = time.perf_counter() - start
-                c = engine.collisions - c0
-                print(f"{dim} {phi} {n} {c} {wall:.3f} {c / wall:.4g} "
-                      f"{(engine.events - e0) / c:.2f} {peak_memory()}", flush=True)
+                c, wall, events = timed_gas(n, phi, dim, per_grain)
+                print(f"{dim} {phi} {n} {c} {wall:.3f} {c / wall:.4g} {events:.2f} "
+                      f"{peak_memory()}", flush=True)
 
 
 def versus(n, duration):
@@ -184,15 +190,7 @@ def peer(source, cells, per_grain):
                 best = max(best, (c2 - c1) / (w2 - w1))
                 print(f"{phi} {grains} EDMD-{code} {c2 - c1} {w2 - w1:.3f} "
                       f"{(c2 - c1) / (w2 - w1):.4g}", flush=True)
-            engine, volume = gas(grains, phi, 3)
-            rate = enskog_collision_rate(grains / volume, 1e-3, 1e-9, engine.state.masses[0],
-                                         phi, 3)
-            engine.run(time=5 * 2 / rate)
-            c0 = engine.collisions
-            start = time.perf_counter()
-            engine.run(time=per_grain * 2 / rate)
-            wall = time.perf_counter() - start
-            c = engine.collisions - c0
+            c, wall, _ = timed_gas(grains, phi, 3, per_grain)
             print(f"{phi} {grains} graindyn {c} {wall:.3f} {c / wall:.4g} "
                   f"{c / wall / best:.3f}", flush=True)
 
