@@ -174,7 +174,8 @@ class _Driver:
         return results
 
 
-# matplotlib is not thread-safe; runs of a gpu.batch.Batch draw from several threads
+# runs of a gpu.batch.Batch draw from several threads: their figures share no pyplot
+# state (graindyn.figures), and this lock keeps matplotlib's caches to one at a time
 _DRAWING = threading.Lock()
 
 

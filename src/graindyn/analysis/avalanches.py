@@ -180,11 +180,9 @@ def summarize_sweep(sweep_dir, points):
 
 
 def _figure(path, rows, usable, fits):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from ..figures import subplots
 
-    fig, ax = plt.subplots(1, 3, figsize=(15.5, 4.2))
+    fig, ax = subplots(1, 3, figsize=(15.5, 4.2))
     for r in rows:
         s, w = cumulative(r["sizes"])
         if s.size and r.get("mean", 0) > 0:
@@ -222,5 +220,4 @@ def _figure(path, rows, usable, fits):
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
-    plt.close(fig)
     return path

@@ -211,13 +211,11 @@ def power_law(table_rows):
 def figure(path, table_rows, fit, measure):
     """h_s [MPa] versus eta on log-log axes: every point with its error bars (marker by
     varied parameter), the fit, the paper's fit and the Guamo sand experiment."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     import matplotlib.ticker
 
-    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    from ..figures import save, subplots
+
+    fig, ax = subplots(figsize=(6.4, 4.8))
     markers = "osD^v<>ph"
     points = unique_rows(table_rows)
     labels = []
@@ -249,7 +247,7 @@ def figure(path, table_rows, fit, measure):
     ax.xaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
     ax.xaxis.set_minor_formatter(matplotlib.ticker.ScalarFormatter())
     ax.legend(fontsize=7)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def compression_figure(path, points):
@@ -257,12 +255,9 @@ def compression_figure(path, points):
     stress on log axes: every finished run's loading levels (open markers where not at
     rest), one colour per (parameter, value), so that the seed spread shows beside the
     differences between values."""
-    import matplotlib
+    from ..figures import save, subplots
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    fig, ax = subplots(figsize=(6.4, 4.8))
     groups = {}
     for p in points:
         if p.status == "finished" and (p.results or {}).get("ladder"):
@@ -285,18 +280,9 @@ def compression_figure(path, points):
            title="compression of every run (open: level not at rest)")
     if groups:
         ax.legend(fontsize=7)
-    return _save(fig, path)
+    return save(fig, path)
 
 
-def _save(fig, path):
-    """Write ``fig`` to ``path`` (its folder made) and close it; returns the path."""
-    import matplotlib.pyplot as plt
-
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
 
 
 def _finite(data):

@@ -13,9 +13,7 @@ def draw_network(engine, path, marked=(), title="", slice_width=None):
     ``marked`` are drawn in red.  In 3D only grains whose centre lies within
     ``slice_width`` [m] (default: the largest diameter) of the slice plane are drawn.
     Returns ``path``."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from ..figures import subplots
     from matplotlib.collections import EllipseCollection, LineCollection
 
     s = engine.state
@@ -24,7 +22,7 @@ def draw_network(engine, path, marked=(), title="", slice_width=None):
     is_marked = np.zeros(s.n, bool)
     is_marked[np.asarray(marked, dtype=np.int64)] = True
     xy = s.positions[:, [across, up]]
-    fig, ax = plt.subplots(figsize=(6, 8))
+    fig, ax = subplots(figsize=(6, 8))
     colours = np.where(is_marked[shown][:, None], [[0.85, 0.15, 0.1, 1.0]],
                        [[0.8, 0.8, 0.8, 1.0]])
     ax.add_collection(EllipseCollection(2 * cut[shown], 2 * cut[shown], 0.0, units="xy",
@@ -53,7 +51,6 @@ def draw_network(engine, path, marked=(), title="", slice_width=None):
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=150)
-    plt.close(fig)
     return path
 
 

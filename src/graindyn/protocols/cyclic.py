@@ -202,12 +202,10 @@ class Cyclic(Protocol):
         """Settlement and coordination against the cycle number, and the plate stress
         against time (cyclic.png); the settling of the bed (settling.png: Karrech et
         al.'s Fig. 3, deposition.settling_figure)."""
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        from ..figures import subplots
 
         rows = results["cycles"]
-        fig, ax = plt.subplots(1, 3, figsize=(15, 4.2))
+        fig, ax = subplots(1, 3, figsize=(15, 4.2))
         n = [r["cycle"] for r in rows]
         ax[0].plot(n, [1e3 * r["settlement_m"] for r in rows], "o-")
         ax[0].set(xlabel="cycle", ylabel="settlement [mm]")

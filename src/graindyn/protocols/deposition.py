@@ -5,6 +5,7 @@ from typing import Literal
 
 import numpy as np
 
+from ..figures import save
 from .base import Protocol, register
 from .phases import SettleSettings, preparation
 
@@ -50,13 +51,11 @@ def settling_figure(series, report, title, bottom_wall):
     its end: kinetic energy, bottom force over the weight and coordination number from
     ``series`` (``bottom_wall`` names the floor's column), and the packing fraction of
     the report's history."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from ..figures import subplots
 
     t = series["time [s]"]
     settling = t <= report.get("time_s", np.inf) * (1 + 1e-12)
-    fig, ax = plt.subplots(1, 4, figsize=(18, 4))
+    fig, ax = subplots(1, 4, figsize=(18, 4))
     ax[0].semilogy(t[settling], (series["kinetic [J]"] + series["rotational [J]"])[settling])
     ax[0].set(xlabel="t [s]", ylabel="kinetic energy [J]")
     ax[1].plot(t[settling], series[f"force_{bottom_wall} [N]"][settling]
@@ -74,12 +73,5 @@ def settling_figure(series, report, title, bottom_wall):
 
 
 def save_figure(fig, rundir, name):
-    """Write ``fig`` as figures/``name`` of the run directory, close it; the path."""
-    import matplotlib.pyplot as plt
-
-    fig.tight_layout()
-    path = rundir.figures / name
-    path.parent.mkdir(exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    """Write ``fig`` as figures/``name`` of the run directory; the path."""
+    return save(fig, rundir.figures / name)

@@ -153,9 +153,7 @@ class CoolingGas(Protocol):
 
     def figures(self, rundir, series, results):
         """T/T0 against time, log-log, with the fitted Haff law."""
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        from ..figures import subplots
 
         from .deposition import save_figure
 
@@ -165,7 +163,7 @@ class CoolingGas(Protocol):
         t = np.array([r["time_s"] for r in rows])
         temperature = np.array([r["temperature_J"] for r in rows])
         rot = np.array([r["rotational_temperature_J"] for r in rows])
-        fig, ax = plt.subplots(figsize=(6, 4.5))
+        fig, ax = subplots(figsize=(6, 4.5))
         keep = t > 0
         ax.loglog(t[keep], temperature[keep] / temperature[0], "o", ms=3,
                   label="translational")

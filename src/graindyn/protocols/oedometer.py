@@ -187,12 +187,10 @@ class Oedometer(Protocol):
     def figures(self, rundir, series, results):
         """e against p on linear and log axes with the fitted curves (as Oquendo Fig.
         3/4), and the piston force against time."""
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        from ..figures import subplots
 
         rows = results["ladder"]
-        fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
+        fig, axes = subplots(1, 3, figsize=(15, 4.2))
         for ax, log in zip(axes[:2], (False, True)):
             for measure, key, color in (("vertical", "sigma_top_Pa", "C0"),
                                         ("trace", "trace_Pa", "C1")):

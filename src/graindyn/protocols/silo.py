@@ -169,13 +169,11 @@ class Silo(Protocol):
     def figures(self, rundir, series, results):
         """The histogram n(s) (Pérez Fig. 4), the normalized cumulative w(s) (Eq. 39,
         Fig. 5) and the disks that left against time."""
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        from ..figures import subplots
 
         sizes = np.array([r["size"] for r in results.get("avalanches", [])
                           if not r["first"]], dtype=float)
-        fig, ax = plt.subplots(1, 3, figsize=(15, 4.2))
+        fig, ax = subplots(1, 3, figsize=(15, 4.2))
         positive = sizes[sizes > 0]
         if positive.size:
             ax[0].hist(positive, bins=max(1, min(40, positive.size // 3 + 1)))

@@ -129,9 +129,7 @@ class VibratedBed(Protocol):
         profile at the end."""
         import csv
 
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        from ..figures import subplots
 
         from .deposition import save_figure
 
@@ -141,7 +139,7 @@ class VibratedBed(Protocol):
         with path.open() as f:
             rows = [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
         t = np.array([r["time_s"] for r in rows])
-        fig, ax = plt.subplots(1, 3, figsize=(13, 4))
+        fig, ax = subplots(1, 3, figsize=(13, 4))
         ax[0].plot(t, [1e3 * r["centre_height_m"] for r in rows])
         ax[0].set(xlabel="t [s]", ylabel="centre of mass above the floor [mm]")
         ax[1].semilogy(t, [r["temperature_J"] for r in rows])

@@ -18,6 +18,7 @@ from ..core.triggers import Periodic
 from ..core.walls import Plane, box
 from ..engines.soft.integrators import NAMES, STAGES, integrator_id
 from ..engines.soft.simulation import Simulation
+from ..figures import subplots
 from ..physics import reference as ref
 from .problems import resting_grain_error, symmetric_top_errors
 
@@ -30,15 +31,6 @@ def _write_csv(path, header, rows):
         writer = csv.writer(f)
         writer.writerow(header)
         writer.writerows(rows)
-
-
-def _figure():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 # ------------------------------------------------------------------ Oquendo Fig. 2
@@ -87,8 +79,7 @@ def oquendo_energy_spread(outdir, quick):
     _write_csv(outdir / "oquendo_energy_spread.csv",
                ("scheme", "dt_s", "collision_time_over_dt", "energy_spread_J",
                 "relative_energy_spread"), rows)
-    plt = _figure()
-    fig, ax = plt.subplots(figsize=(5, 4))
+    fig, ax = subplots(figsize=(5, 4))
     for name in OQUENDO_SCHEMES:
         mine = [r for r in rows if r[0] == name]
         ax.loglog([r[1] for r in mine], [r[3] for r in mine], "o-", label=name)
@@ -98,7 +89,6 @@ def oquendo_energy_spread(outdir, quick):
     ax.legend()
     fig.tight_layout()
     fig.savefig(outdir / "oquendo_fig2_energy_spread.png", dpi=120)
-    plt.close(fig)
     slopes = {}
     for name in OQUENDO_SCHEMES:
         mine = [r for r in rows if r[0] == name]
@@ -161,8 +151,7 @@ def perez_collision_error(outdir):
                ("time_over_half_period",) + tuple(f"{n}_velocity_error_m_per_s"
                                                   for n in PEREZ_SCHEMES),
                zip(t, *(curves[n][1] for n in PEREZ_SCHEMES)))
-    plt = _figure()
-    fig, ax = plt.subplots(figsize=(5, 4))
+    fig, ax = subplots(figsize=(5, 4))
     for name in PEREZ_SCHEMES:
         ax.plot(*curves[name], label=name)
     ax.set_xlabel("t / (pi/omega)   (t = 0 at first touch)")
@@ -171,7 +160,6 @@ def perez_collision_error(outdir):
     ax.legend()
     fig.tight_layout()
     fig.savefig(outdir / "perez_fig3_collision_velocity_error.png", dpi=120)
-    plt.close(fig)
     return {name: {"max_abs_velocity_error_m_per_s": float(np.max(np.abs(curves[name][1])))}
             for name in PEREZ_SCHEMES}
 
@@ -206,8 +194,7 @@ def order_of_accuracy(outdir, quick):
                  s["undamped"]["error_at_200_force_evaluations_per_period"],
                  s["damped"]["error_at_200_force_evaluations_per_period"])
                 for n, s in summary.items()])
-    plt = _figure()
-    fig, axes = plt.subplots(1, 2, figsize=(9, 4), sharey=True)
+    fig, axes = subplots(1, 2, figsize=(9, 4), sharey=True)
     for ax, damping in zip(axes, (0.0, 2.0)):
         for name in NAMES:
             mine = [r for r in rows if r[0] == name and r[1] == damping]
@@ -218,7 +205,6 @@ def order_of_accuracy(outdir, quick):
     axes[1].legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(outdir / "order_of_accuracy.png", dpi=120)
-    plt.close(fig)
     return summary
 
 

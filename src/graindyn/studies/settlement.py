@@ -452,10 +452,7 @@ def figures(out, summary):
     the cycle and the errors in coordination, configuration (E_r) and settlement
     against the gained time (Fig. 12, and Fig. 13 for the partially confined mode).
     Returns their paths."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from ..figures import subplots
 
     out = pathlib.Path(out)
     paths, runs, families = summary["paths"], summary["runs"], summary["families"]
@@ -467,7 +464,7 @@ def figures(out, summary):
         return (f"k_i={r['initial_cycles']}, k={r['computed_cycles_k']}, "
                 f"h={r['extrapolated_cycles_h']}")
 
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), sharey=True)
+    fig, axes = subplots(1, 2, figsize=(12, 4.5), sharey=True)
     for ax, family, tag in zip(axes, ("k", "h"), ("(a) varying k", "(b) varying h")):
         c, s, _ = zip(*paths[FULL])
         ax.plot(c, 1e3 * np.array(s), "k-", lw=2, label="full DEM")
@@ -484,9 +481,8 @@ def figures(out, summary):
     fig.tight_layout()
     first = out / "settlement_paths.png"
     fig.savefig(first, dpi=110)
-    plt.close(fig)
 
-    fig, axes = plt.subplots(1, 4, figsize=(18, 4.2))
+    fig, axes = subplots(1, 4, figsize=(18, 4.2))
     c, z = zip(*summary["coordination_paths"][FULL])
     axes[0].plot(c, z, "k-", lw=2, label="full DEM")
     for name in runs:
@@ -512,5 +508,4 @@ def figures(out, summary):
     fig.tight_layout()
     second = out / "settlement_errors.png"
     fig.savefig(second, dpi=110)
-    plt.close(fig)
     return [first, second]
