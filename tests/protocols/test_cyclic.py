@@ -86,6 +86,9 @@ def test_the_bed_compacts_and_residuals_are_written(cyclic):
     (lambda c: c["protocol"].update(smoothing=-1.0), "smoothing"),
     (lambda c: c["protocol"].update(extrapolated_growth=0.5), "extrapolated_growth"),
     (lambda c: c["protocol"].update(restart_cycles=-1), "restart_cycles"),
+    (lambda c: c["protocol"].update(final_cycles=-1), "final_cycles"),
+    (lambda c: c["protocol"].update(extrapolation="linear", cycles=10, initial_cycles=5,
+                                    final_cycles=5), "no cycle to extrapolate"),
     (lambda c: c["protocol"].update(relaxation="frictionless"), "relaxation"),
     (lambda c: c["protocol"].update(fit_time="wall"), "fit_time"),
     (lambda c: c["walls"].update(container={"kind": "box", "lo": [0, 0, 0],
@@ -185,6 +188,16 @@ def test_the_window_opens_restart_cycles_after_a_jump(procedure):
     jumps = [(j["from_cycle"], j["to_cycle"]) for j in results["extrapolations"]]
     assert jumps == [(5, 6), (10, 11)]
     assert [r["cycle"] for r in results["cycles"]] == [1, 2, 3, 4, 5, 7, 8, 9, 10, 12]
+
+
+def test_final_cycles_end_the_procedure_on_computed_cycles(procedure):
+    """final_cycles = 2 with k_i = 2, k = 3, h = 3 over 8 cycles: cycles 1-5 computed;
+    the jump, cut so as to leave 2 cycles, goes to cycle 6, and cycles 7-8 are
+    computed from there (against the jump to cycle 8 that ends the run without it)."""
+    _, results = procedure(final_cycles=2)
+    jumps = [(j["from_cycle"], j["to_cycle"]) for j in results["extrapolations"]]
+    assert jumps == [(5, 6)]
+    assert [r["cycle"] for r in results["cycles"]] == [1, 2, 3, 4, 5, 7, 8]
 
 
 def test_the_window_clock_is_the_fit_s_time(procedure):

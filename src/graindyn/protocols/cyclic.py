@@ -108,6 +108,11 @@ class CyclicSettings(SettleSettings):
         1.0, "the factor h grows by from one round to the next, h_r = round(h g^r) for "
         "round r = 0, 1, ... (Karrech Sec. 5: the error falls as the cycles computed so "
         "far grow, so h may grow with them); >= 1", ge=1)
+    final_cycles: Int = _f(
+        0, "cycles computed at the end: no jump reaches past cycles - final_cycles, so the "
+        "run ends on computed cycles and its last state is a loaded bed, comparable with "
+        "full DEM's (coordination, stresses), instead of a relaxed, unloaded one; 0: the "
+        "last jump may end the run (Karrech); >= 0", ge=0)
     plate_fraction: Float = _f(
         1.0, "the fraction of the container's width the plate covers [-], in (0, 1]: 1 an "
         "infinite plane over the whole top (fully confined); < 1 a finite plate centred on "
@@ -166,6 +171,12 @@ class Cyclic(Protocol):
         if getattr(box, "kind", None) == "box" and not box.open_top:
             raise ValueError("the cyclic protocol needs a cylinder or an open-top box (the "
                              "plate closes it)")
+        if settings.extrapolation != "none" \
+                and settings.initial_cycles + settings.final_cycles >= settings.cycles:
+            raise ValueError(
+                f"protocol.final_cycles = {settings.final_cycles} leaves no cycle to "
+                f"extrapolate: initial_cycles + final_cycles must be below cycles = "
+                f"{settings.cycles}")
 
     @classmethod
     def materials_named(cls, settings):
@@ -258,7 +269,8 @@ class Cycles(ProtocolPhase):
                          reference=s.positions.tolist())
             state.update(cycle=0, jumps=[])
         while state["cycle"] < p.cycles:
-            if p.extrapolation != "none" and len(state.get("round", ())) > p.computed_cycles:
+            if p.extrapolation != "none" and len(state.get("round", ())) > p.computed_cycles \
+                    and state["cycle"] < p.cycles - p.final_cycles:
                 self._jump(engine, state, k)
                 continue
             outcome = run_until(engine, state, "cycle_end", 1.0 / p.frequency, every=every,
@@ -297,7 +309,7 @@ class Cycles(ProtocolPhase):
         else:
             times = period * np.arange(0, p.computed_cycles + 1)
         planned = round(p.extrapolated_cycles * p.extrapolated_growth ** len(state["jumps"]))
-        ahead = min(planned, p.cycles - state["cycle"])
+        ahead = min(planned, p.cycles - p.final_cycles - state["cycle"])
         end = times[-1] + period * ahead
         law = p.extrapolation
         grains = np.array([r["positions"] for r in records])
