@@ -139,6 +139,7 @@ class _Driver:
         """Run the protocol's remaining phases; returns the results dict."""
         engine, protocol = self.engine, self.protocol
         wall = time.perf_counter()
+        cpu = time.process_time()
         start_step = engine.step
         with _Signals() as self.signals, progress_bar(self.show) as bars:
             if engine.time == 0 and self.state["phase"] == 0 and not self.state["states"]:
@@ -161,9 +162,13 @@ class _Driver:
                 self.write_checkpoint()
         self.write_all(engine)
         seconds = time.perf_counter() - wall
+        cpu = time.process_time() - cpu
         results = protocol.results(engine, self.state["states"])
         results.update({"dt_s": getattr(engine, "dt", None), "steps_this_session": engine.step - start_step,
                         "wall_time_this_session_s": seconds,
+                        # every thread of the process: on a shared machine the
+                        # time the run would take alone on its cores
+                        "cpu_time_this_session_s": cpu,
                         "particle_steps_per_s": engine.state.n * (engine.step - start_step)
                         / max(seconds, 1e-9), "threads": numba.get_num_threads()})
         self.rundir.write_results(results)

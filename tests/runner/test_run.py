@@ -32,6 +32,7 @@ def test_run_directory_holds_everything(finished):
     assert meta["machine"]["cores"] >= 1
     results = json.loads((finished / "results.json").read_text())
     assert results["steps"] > 0 and 0.3 < results["packing_fraction"] < 0.7
+    assert 0 < results["cpu_time_this_session_s"] and 0 < results["wall_time_this_session_s"]
     header = (finished / "series.csv").read_text().splitlines()[0]
     assert "time [s]" in header and "force_zlo [N]" in header
     # the resolved config fixes the time step that was suggested
