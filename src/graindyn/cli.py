@@ -329,6 +329,10 @@ def study_settlement(
         help="numba threads of each run [default: the automatic count].", min=1)] = None,
     jobs: Annotated[int, typer.Option(
         help="Runs at a time, each in its own process (one per free core).", min=1)] = 1,
+    replicas: Annotated[int, typer.Option(
+        help="Full DEM runs of the bed with one grain moved by 1, 2, ... nm: how far "
+        "apart two computations of the same bed land (the floor of every error).",
+        min=0)] = 0,
     quick: Annotated[bool, typer.Option(
         help="A 120-grain soft bed, 8 cycles, k_i = 2, k and h in 2, 3 (about a minute).")]
     = False,
@@ -360,7 +364,7 @@ def study_settlement(
             initial_cycles=initial_cycles, ks=k and _numbers(k, "--k"),
             hs=h and _numbers(h, "--h"), k_fixed=k_fixed, h_fixed=h_fixed,
             estimator=estimator, mode=mode, overrides=overrides, threads=threads, jobs=jobs,
-            echo=typer.echo)
+            replicas=replicas, echo=typer.echo)
     except (ConfigError, ValueError, FileExistsError) as err:
         _fail(err)
     for name, r in summary["runs"].items():

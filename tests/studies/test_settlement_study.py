@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 
 from graindyn.cli import app
 from graindyn.config.load import read_toml
-from graindyn.studies.settlement import (FULL, QUICK, contact_coordination, plan,
+from graindyn.studies.settlement import (FULL, QUICK, contact_coordination, perturb, plan,
                                          run_settlement_study, set_dotted, study_config)
 
 
@@ -21,7 +21,8 @@ from graindyn.studies.settlement import (FULL, QUICK, contact_coordination, plan
 def study(tmp_path_factory):
     out = tmp_path_factory.mktemp("settlement_study")
     lines = []
-    summary = run_settlement_study(out, quick=True, ks=(2, 3), hs=(3,), echo=lines.append)
+    summary = run_settlement_study(out, quick=True, ks=(2, 3), hs=(3,), replicas=1,
+                                   echo=lines.append)
     return out, summary, lines
 
 
@@ -36,7 +37,8 @@ def test_the_study_writes_its_tables_and_figures(study):
         rows = list(csv.DictReader(f))
     assert [r["run"] for r in rows] == list(summary["runs"])
     assert summary["families"] == {"k": ["shenton_ki2_k2_h2", "shenton_ki2_k3_h2"],
-                                   "h": ["shenton_ki2_k3_h3"]}
+                                   "h": ["shenton_ki2_k3_h3"],
+                                   "replica": ["full_dem_replica_1"]}
 
 
 def test_full_dem_against_itself_is_exact_and_the_errors_are_finite(study):
@@ -65,17 +67,51 @@ def test_full_dem_against_itself_is_exact_and_the_errors_are_finite(study):
 
 def test_every_run_starts_from_the_same_settled_bed(study):
     """Cycle 1 is computed by every run from the same checkpoint: the same settlement
-    to the last bit."""
+    to the last bit; the replica, one grain moved by 1 nm, lands elsewhere."""
     _, summary, _ = study
-    first = {name: path[0] for name, path in summary["paths"].items()}
+    first = {name: path[0] for name, path in summary["paths"].items()
+             if name not in summary["families"]["replica"]}
     assert len({tuple(p) for p in first.values()}) == 1
+    assert summary["paths"]["full_dem_replica_1"][0] != first[FULL]
     assert summary["bed"]["settle_time_s"] > 0
+
+
+def test_a_replica_is_full_dem_of_the_bed_with_one_grain_moved(study):
+    """Replica 1 starts from the settled bed with one grain moved by 1 nm and runs the
+    cycles of full DEM: not the same computation (its residual displacements differ),
+    and its errors are the summary's noise."""
+    out, summary, lines = study
+    r = summary["runs"]["full_dem_replica_1"]
+    assert (r["cycles_computed"], r["cycles_extrapolated"]) == (8, 0)
+    assert r["configuration_error"] > 0 and r["settlement_m"] > 0
+    assert any("full_dem_replica_1: grain" in line and "moved by 1e-09 m" in line
+               for line in lines)
+    noise = summary["noise"]
+    for key in ("settlement_error", "coordination_error", "configuration_error",
+                "path_error"):
+        assert tuple(noise[key]) == (r[key], r[key]), key
+
+
+def test_perturb_moves_the_free_grain_nearest_the_centre(tmp_path):
+    import h5py
+
+    positions = np.array([[0.0, 0, 0], [1.0, 0, 0], [2.0, 0, 0], [3.0, 0, 0], [4.0, 0, 0]])
+    fixed = np.array([0, 0, 1, 0, 0], np.int8)          # the centre grain (2) is held
+    with h5py.File(tmp_path / "c.h5", "w") as f:
+        f["grains/positions"] = positions
+        f["grains/fixed"] = fixed
+    grain = perturb(tmp_path / "c.h5", 1e-9)
+    with h5py.File(tmp_path / "c.h5") as f:
+        moved = f["grains/positions"][...]
+    assert grain == 1                                   # nearest the free grains' centre
+    assert moved[1, 0] == 1.0 + 1e-9
+    assert np.array_equal(np.delete(moved, 1, axis=0), np.delete(positions, 1, axis=0))
 
 
 def test_a_second_call_reuses_the_bed_and_the_runs(study):
     out, summary, _ = study
     result = CliRunner().invoke(app, ["study", "settlement", "--quick", "--out", str(out),
-                                      "--k", "2,3", "--h", "3"])
+                                      "--k", "2,3", "--h", "3", "--replicas", "1"])
     assert result.exit_code == 0, result.output
     assert "bed: reusing" in result.output
     assert result.output.count("reusing the finished run") == len(summary["runs"])
@@ -103,6 +139,11 @@ def test_configs_plans_and_overrides():
         set_dotted({"run": {"seed": 1}}, "run.seed.x", 2)
     runs, families = plan(100)
     assert len(runs) == 6          # full DEM and five procedures: (40, 10) is in both
+    runs, families = plan(100, replicas=2)
+    assert families["replica"] == ["full_dem_replica_1", "full_dem_replica_2"]
+    assert runs["full_dem_replica_2"] == {"cycles": 100, "extrapolation": "none"}
+    with pytest.raises(ValueError, match="replicas"):
+        plan(100, replicas=-1)
     assert families["k"][2] == families["h"][0] == "shenton_ki10_k40_h10"
     assert runs["shenton_ki10_k20_h10"] == {
         "cycles": 100, "extrapolation": "shenton", "initial_cycles": 10,

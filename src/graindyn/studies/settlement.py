@@ -58,6 +58,34 @@ from ..analysis.settlement import relative_error
 
 LAWS = ("linear", "shenton")
 FULL = "full_dem"
+REPLICA = "full_dem_replica_"
+# how far replica r moves one grain of the settled bed: r x PERTURBATION [m], far below
+# any length of the bed (round-off of the positions is about 1e-18 m)
+PERTURBATION = 1e-9
+
+
+def perturbation_of(name):
+    """The displacement [m] replica ``name`` gives one grain of the bed (0 for every
+    other run)."""
+    return int(name[len(REPLICA):]) * PERTURBATION if name.startswith(REPLICA) else 0.0
+
+
+def perturb(path, displacement):
+    """Move the free grain nearest the centre of the grains by ``displacement`` [m]
+    along x in the checkpoint file ``path`` (its contacts, velocities and integrator
+    history kept): a replica of the bed that differs from it by that much.  Returns
+    the grain's index."""
+    import h5py
+
+    with h5py.File(path, "r+") as f:
+        positions = f["grains/positions"][...]
+        free = f["grains/fixed"][...] == 0 if "grains/fixed" in f \
+            else np.ones(len(positions), bool)
+        distance = np.linalg.norm(positions - positions[free].mean(axis=0), axis=1)
+        grain = int(np.argmin(np.where(free, distance, np.inf)))
+        positions[grain, 0] += displacement
+        f["grains/positions"][...] = positions
+    return grain
 
 # Karrech et al. Table 1 (examples/cyclic.toml): diorite in a steel cylinder, fully
 # confined mode; ``grains`` scales the cylinder's radius to keep the bed's depth.
@@ -162,14 +190,22 @@ def study_config(base, grains=None, overrides=None):
 
 
 def plan(cycles, initial_cycles=10, ks=(10, 20, 40), hs=(10, 20, 40), k_fixed=40,
-         h_fixed=10, estimator="shenton"):
+         h_fixed=10, estimator="shenton", replicas=0):
     """The study's runs: {name: protocol settings}, full DEM first, and the families
-    {"k": names (k_i, k in ks, h = h_fixed), "h": names (k_i, k = k_fixed, h in hs)};
-    a run in both families is made once."""
+    {"k": names (k_i, k in ks, h = h_fixed), "h": names (k_i, k = k_fixed, h in hs),
+    "replica": names of the ``replicas`` full DEM runs of a perturbed bed (replica r
+    has one grain moved by r x PERTURBATION, perturbation_of)}; a run in both families
+    is made once."""
     if estimator not in LAWS:
         raise ValueError(f"estimator {estimator!r}: choose one of {', '.join(LAWS)}")
+    if replicas < 0:
+        raise ValueError(f"replicas must be >= 0, got {replicas}")
     runs = {FULL: {"cycles": cycles, "extrapolation": "none"}}
-    families = {"k": [], "h": []}
+    families = {"k": [], "h": [], "replica": []}
+    for r in range(1, replicas + 1):
+        name = f"{REPLICA}{r}"
+        runs[name] = {"cycles": cycles, "extrapolation": "none"}
+        families["replica"].append(name)
     for family, pairs in (("k", [(k, h_fixed) for k in ks]),
                           ("h", [(k_fixed, h) for h in hs])):
         for k, h in pairs:
@@ -225,11 +261,12 @@ def prepare_bed(data, folder, echo=print):
 
 
 # ------------------------------------------------------------------ one run
-def run_from_bed(bed, settings, folder, echo=print, threads=None):
+def run_from_bed(bed, settings, folder, echo=print, threads=None, perturbation=0.0):
     """The cycles of one study run in the run directory ``folder``: the bed's resolved
     config with the protocol ``settings`` (and no figures), its meta data, time series
-    and settled checkpoint copied there, then ``runner.resume``.  Returns the record of
-    the run (study_run.json): results, path, final state measures and times."""
+    and settled checkpoint copied there (with ``perturbation`` [m] > 0, one grain of it
+    moved by that much: perturb), then ``runner.resume``.  Returns the record of the
+    run (study_run.json): results, path, final state measures and times."""
     from ..config import dumps, validate
     from ..config.load import read_toml
     from ..runner import resume
@@ -238,7 +275,8 @@ def run_from_bed(bed, settings, folder, echo=print, threads=None):
     done = folder / "study_run.json"
     if done.exists():
         record = json.loads(done.read_text())
-        if record["settings"] == settings:
+        if record["settings"] == settings \
+                and record.get("perturbation_m", 0.0) == perturbation:
             echo(f"{folder.name}: reusing the finished run")
             return record
     if folder.exists():
@@ -253,13 +291,17 @@ def run_from_bed(bed, settings, folder, echo=print, threads=None):
     shutil.copy(bed / "run" / "meta.json", folder / "meta.json")
     shutil.copy(bed / "run" / "series.csv", folder / "series.csv")
     shutil.copy(bed / "settled.h5", folder / "checkpoints" / "checkpoint.h5")
+    if perturbation:
+        grain = perturb(folder / "checkpoints" / "checkpoint.h5", perturbation)
+        echo(f"{folder.name}: grain {grain} moved by {perturbation:.3g} m")
     if (bed / "run" / "vtk").exists():
         shutil.copytree(bed / "run" / "vtk", folder / "vtk")
     echo(f"{folder.name}: {settings}")
     cpu, wall = time.process_time(), time.perf_counter()
     results = resume(folder, show_progress=False, echo=lambda *a: None, threads=threads)
     cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
-    record = {"settings": settings, "cpu_s": cpu, "wall_s": wall,
+    record = {"settings": settings, "perturbation_m": perturbation, "cpu_s": cpu,
+              "wall_s": wall,
               "steps": results.get("steps_this_session"), **final_state(folder, results)}
     done.write_text(json.dumps(record, indent=1, default=float))
     echo(f"{folder.name}: {cpu:.1f} s CPU, settlement {1e3 * record['settlement_m']:.4g} mm"
@@ -341,7 +383,7 @@ def compare(run, full, run_dir, full_dir):
 def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=None,
                          initial_cycles=None, ks=None, hs=None, k_fixed=None, h_fixed=None,
                          estimator="shenton", mode="fully", overrides=None, threads=None,
-                         jobs=1, echo=print):
+                         jobs=1, replicas=0, echo=print):
     """Settle one bed, run full DEM and the procedure's k and h families from it (module
     docstring) into ``out``; write summary.csv, paths.csv, summary.json and the figures
     settlement_paths.png (Fig. 11) and settlement_errors.png (Fig. 12-13).
@@ -354,7 +396,11 @@ def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=Non
     protocol settings go on the base; overrides: {dotted key: value} applied last;
     threads: numba threads of each run (default the bed's); jobs: runs at a time, each
     in its own process (their CPU times are then measured side by side, on a machine
-    with at least ``jobs`` free cores).  Returns the summary dict."""
+    with at least ``jobs`` free cores); replicas: full DEM runs of the bed with one
+    grain moved by 1, 2, ... nm (perturb), compared with full DEM like the procedure's
+    runs: the spread of their errors ("noise" in the summary) is how far apart two
+    computations of the same bed land, the floor below which a procedure's error means
+    nothing.  Returns the summary dict."""
     out = pathlib.Path(out)
     q = quick
     cycles = cycles or (8 if q else 100)
@@ -371,8 +417,10 @@ def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=Non
     data = study_config(base, grains, {**MODES[mode], **(overrides or {})})
     procedure = {key: data["protocol"].pop(key) for key in PROCEDURE_KEYS
                  if key in data["protocol"]}
-    runs, families = plan(cycles, initial_cycles, ks, hs, k_fixed, h_fixed, estimator)
-    runs = {name: settings if name == FULL else {**procedure, **settings}
+    runs, families = plan(cycles, initial_cycles, ks, hs, k_fixed, h_fixed, estimator,
+                          replicas)
+    runs = {name: settings if settings["extrapolation"] == "none"
+            else {**procedure, **settings}
             for name, settings in runs.items()}
     out.mkdir(parents=True, exist_ok=True)
     bed = out / "bed"
@@ -384,12 +432,13 @@ def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=Non
         with concurrent.futures.ProcessPoolExecutor(
                 jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
             futures = {name: pool.submit(run_from_bed, bed, settings, out / "runs" / name,
-                                         threads=threads)
+                                         threads=threads,
+                                         perturbation=perturbation_of(name))
                        for name, settings in runs.items()}
             records = {name: f.result() for name, f in futures.items()}
     else:
         records = {name: run_from_bed(bed, settings, out / "runs" / name, echo=echo,
-                                      threads=threads)
+                                      threads=threads, perturbation=perturbation_of(name))
                    for name, settings in runs.items()}
     full = records[FULL]
     rows = []
@@ -417,6 +466,7 @@ def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=Non
         "families": families, "runs": {r["run"]: r for r in rows},
         "paths": {name: r["path"] for name, r in records.items()},
         "coordination_paths": {name: r["coordination_path"] for name, r in records.items()},
+        "noise": noise([r for r in rows if r["run"] in families["replica"]]),
         "definitions": {
             "settlement_error": "|s_p(N) - s_full(N)| / s_full(N)",
             "coordination_error": "|Z_p(N) - Z_full(N)| / Z_full(N), Z = 2 C / N of the "
@@ -426,11 +476,23 @@ def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=Non
             "path_error": "max over the run's cycles c of |s_p(c) - s_full(c)| / s_full(c)",
             "gained_time_percent": "(t_full - t_p) / t_p x 100, t the CPU time [s] of the "
                                    "cycles (settling excluded)",
-            "speedup": "t_full / t_p"}}
+            "speedup": "t_full / t_p",
+            "noise": "mean and largest of each error over the replicas, full DEM runs of "
+                     "the bed with one grain moved by 1, 2, ... nm"}}
     _write_tables(out, rows, records)
     (out / "summary.json").write_text(json.dumps(summary, indent=1, default=float))
     figures(out, summary)
     return summary
+
+
+def noise(rows):
+    """{error: (mean, largest)} over the replica rows (settlement, coordination,
+    configuration and path errors); empty without replicas."""
+    keys = ("settlement_error", "coordination_error", "configuration_error", "path_error")
+    if not rows:
+        return {}
+    return {key: (float(np.mean([r[key] for r in rows])), float(max(r[key] for r in rows)))
+            for key in keys}
 
 
 def _write_tables(out, rows, records):
@@ -461,11 +523,17 @@ def figures(out, summary):
 
     def label(name):
         r = runs[name]
+        if name.startswith(REPLICA):
+            return f"full DEM, a grain moved by {perturbation_of(name) * 1e9:.0f} nm"
         return (f"k_i={r['initial_cycles']}, k={r['computed_cycles_k']}, "
                 f"h={r['extrapolated_cycles_h']}")
 
     fig, axes = subplots(1, 2, figsize=(12, 4.5), sharey=True)
     for ax, family, tag in zip(axes, ("k", "h"), ("(a) varying k", "(b) varying h")):
+        for r, name in enumerate(families.get("replica", [])):
+            c, s, _ = zip(*paths[name])
+            ax.plot(c, 1e3 * np.array(s), "-", color="0.6", lw=0.8,
+                    label="full DEM, a grain moved by nm" if r == 0 else None)
         c, s, _ = zip(*paths[FULL])
         ax.plot(c, 1e3 * np.array(s), "k-", lw=2, label="full DEM")
         for name in families[family]:
@@ -491,7 +559,8 @@ def figures(out, summary):
             axes[0].plot(c, z, ".", ms=3, label=label(name))
     axes[0].set(xlabel="cycle", ylabel="coordination number [-] (computed cycles)")
     axes[0].legend(fontsize=7)
-    procedure = [r for name, r in runs.items() if name != FULL]
+    replicas = set(families.get("replica", []))
+    procedure = [r for name, r in runs.items() if name != FULL and name not in replicas]
     gained = [r["gained_time_percent"] for r in procedure]
     for ax, key, what in zip(axes[1:], ("coordination_error", "configuration_error",
                                         "settlement_error"),
@@ -502,6 +571,10 @@ def figures(out, summary):
             ax.annotate(f"k={r['computed_cycles_k']},h={r['extrapolated_cycles_h']}",
                         (g, 100.0 * r[key]), fontsize=7)
         ax.plot([0], [0], "k+")
+        if summary.get("noise"):
+            ax.axhspan(0.0, 100.0 * summary["noise"][key][1], color="0.85", zorder=0,
+                       label="full DEM against itself, a grain moved by nm")
+            ax.legend(fontsize=7)
         ax.set(xlabel="gained time (t_full - t_p) / t_p [%]",
                ylabel=f"relative error in {what} [%]")
     fig.suptitle(f"Procedure against full DEM at cycle {summary['cycles']}, {title}")
