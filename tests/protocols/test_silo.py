@@ -167,6 +167,34 @@ def test_a_parallel_tap_starts_the_disks_with_the_walls():
         assert engine.kicks == (expected if kicked else [])
 
 
+def test_a_parallel_tap_ends_the_disks_with_the_walls():
+    """tap_end "parallel": when the walls stop, half a period after the tap, the free
+    disks lose the walls' velocity there, -2 pi nu A (so they gain 2 pi nu A upwards);
+    "walls" leaves them as they are."""
+    for end, kicked in (("parallel", True), ("walls", False)):
+        protocol = SimpleNamespace(p=validate(small(tap_end=end)).protocol,
+                                   vessel=None, log=lambda message: None)
+        engine = _Engine()
+        engine.walls.offset = {name: np.zeros(3) for name in
+                               ("xlo", "xhi", "floor_left", "floor_right", "gate")}
+        engine.place_wall = lambda wall, where: None
+        engine.state.fixed = np.array([1, 0, 0], np.int8)
+        engine.time = 2.0
+        state = {"current": {"start_s": 0.0, "size": 0, "first": True}, "last_exit_s": 0.0}
+        phase = Discharge(protocol)
+        p = protocol.p
+        phase.tap(engine, state)
+        engine.kicks.clear()
+        engine.time = state["tap_end_s"]
+        phase.end_tap(engine, state)
+        if not kicked:
+            assert engine.kicks == []
+            continue
+        ((indices, (dx, dy, dz)),) = engine.kicks
+        assert indices == [1, 2] and dx == dz == 0.0
+        assert dy == pytest.approx(2 * np.pi * p.tap_frequency * p.tap_amplitude, rel=1e-12)
+
+
 def test_cumulative_is_eq_39():
     """w(s) = number of avalanches of size >= s over the number of non-null ones; sizes
     1 + floor(X), X exponential of scale 30, have P(size >= s) = exp(-(s - 1)/30)

@@ -22,7 +22,8 @@ third segment, the gate.  Phases:
     last tap: its size s, 0 for a null avalanche) and taps: every wall of the silo moves
     vertically as y = A sin(2 pi nu t) for half a period, then stops (``tap_start``:
     the disks start at rest, or with the walls' velocity, the whole material moving in
-    parallel with the silo);
+    parallel with the silo; ``tap_end``: the disks go on when the walls stop, or lose
+    the walls' last velocity with them);
 
   until ``avalanches`` avalanches after the first (the initial discharge, kept apart)
   or ``max_time`` of simulated time.
@@ -83,6 +84,12 @@ class SiloSettings(SettleSettings):
         "parallel", "how a tap starts: the disks with the walls' velocity 2 pi nu A, the "
         "whole material moving in parallel with the silo (parallel, Pérez's words); or "
         "the walls alone, the floor striking the disks at rest (walls)")
+    tap_end: Literal["walls", "parallel"] = _f(
+        "walls", "how a tap ends: the walls stop and the disks go on as they move "
+        "(walls); or every free disk's velocity changes as the walls' does when they stop "
+        "(parallel: with tap_start parallel, the whole material follows both velocity "
+        "jumps of the silo, as in the silo's own frame, where a tap is the smooth "
+        "acceleration A (2 pi nu)^2 sin(2 pi nu t) alone)")
     avalanches: Int = _f(100, "avalanches to record after the first [-]; >= 1", ge=1)
     jam_pictures: Int = _f(10, "jammed configurations written (VTK with the arch marked "
                            "and a picture of the force network), the first ones [-]; >= 0",
@@ -375,7 +382,15 @@ class Discharge(ProtocolPhase):
 
     def end_tap(self, engine, state):
         """Stop the walls back where the tap found them: the run ends at the first step
-        end not before the half period, up to one step's travel past it."""
+        end not before the half period, up to one step's travel past it.  With
+        ``tap_end`` "parallel" every free disk loses the walls' velocity then,
+        A 2 pi nu cos(2 pi nu (t - t_tap)) (about -2 pi nu A) upwards (Engine.kick)."""
+        p = self.p
+        if p.tap_end == "parallel":
+            omega = 2.0 * math.pi * p.tap_frequency
+            speed = p.tap_amplitude * omega * math.cos(
+                omega * (engine.time - state["current"]["start_s"]))
+            engine.kick(np.flatnonzero(engine.state.fixed == 0), (0.0, -speed, 0.0))
         for k, where in zip(self.silo_walls(engine), state["tap_from"]):
             engine.set_motion(k, Motion("fixed"))
             engine.place_wall(k, where)
