@@ -267,7 +267,7 @@ class EventDriven:
         self._wall_impulse[:] = 0.0
         status = ev.run_events(self._grains(), self._calendar, self._cell_grid,
                                self._walls(), self._box(), self.tables, self.clock,
-                               self.counters, end)
+                               self.counters, end, self._straight())
         if status == ev.COLLAPSED:
             ev.synchronise(self._grains(), self.time)
             self.state.time = self.time
@@ -284,6 +284,11 @@ class EventDriven:
         self._place_walls()
         if end > start:
             self.walls.force[:] = self._wall_impulse / (end - start)
+
+    def _straight(self):
+        """Whether the grains fly on straight lines and none is held (no gravity): the
+        event loop then runs its copy without those terms (events.run_events)."""
+        return np.bool_(not self.clock[ev.GX:ev.GZ + 1].any() and not self.state.fixed.any())
 
     def run(self, time=None, until=None, every=(), between=None):
         """Advance the simulated time by ``time`` [s] (engine.Engine.run: the run ends at

@@ -45,10 +45,21 @@ SAME_TIME_LIMIT = 100_000        # events at one instant that make a collapse
 
 
 @block_body
-def _advance(g, i, t):
+def _advance(g, i, t, straight):
     """Bring grain i from its own time to time t [s] by free flight (parabola, constant
-    spin, the orientation turned exactly by w dt)."""
+    spin, the orientation turned exactly by w dt).  ``straight`` (a constant in the
+    caller's copy: no gravity and no held grain) drops the terms that are then zero."""
     dt = t - g.local_time[i]
+    if straight:
+        if dt != 0.0:
+            for d in range(3):
+                g.positions[i, d] += dt * g.velocities[i, d]
+            q = g.orientations[i]
+            w = g.angular_velocities[i]
+            q[0], q[1], q[2], q[3] = rotate_quaternion(q[0], q[1], q[2], q[3], w[0] * dt,
+                                                       w[1] * dt, w[2] * dt)
+        g.local_time[i] = t
+        return
     if dt != 0.0 and g.fixed[i] == 0:
         for d in range(3):
             g.positions[i, d] += dt * (g.velocities[i, d] + 0.5 * dt * g.gravity[d])
@@ -69,13 +80,18 @@ def _wrap(box, k, d):
 
 
 @block_body
-def _relative(g, i, j, t):
+def _relative(g, i, j, t, straight):
     """r_i - r_j [m] (not wrapped) and v_i - v_j [m/s] at time t, grain i being at t:
-    (dx, dy, dz, ux, uy, uz)."""
+    (dx, dy, dz, ux, uy, uz).  ``straight``: no gravity and no held grain (the same
+    numbers, fewer terms)."""
     dt = t - g.local_time[j]
-    m = 1.0 if g.fixed[j] == 0 else 0.0
     p = g.positions
     v = g.velocities
+    if straight:
+        return (p[i, 0] - p[j, 0] - dt * v[j, 0], p[i, 1] - p[j, 1] - dt * v[j, 1],
+                p[i, 2] - p[j, 2] - dt * v[j, 2], v[i, 0] - v[j, 0], v[i, 1] - v[j, 1],
+                v[i, 2] - v[j, 2])
+    m = 1.0 if g.fixed[j] == 0 else 0.0
     gx = g.gravity[0]
     gy = g.gravity[1]
     gz = g.gravity[2]
@@ -89,10 +105,10 @@ def _relative(g, i, j, t):
 
 
 @block_body
-def _separation(g, box, i, j, t):
+def _separation(g, box, i, j, t, straight):
     """r_i - r_j [m] (minimum image) and v_i - v_j [m/s] at time t, grain i being at t:
     (dx, dy, dz, ux, uy, uz)."""
-    dx, dy, dz, ux, uy, uz = _relative(g, i, j, t)
+    dx, dy, dz, ux, uy, uz = _relative(g, i, j, t, straight)
     return _wrap(box, 0, dx), _wrap(box, 1, dy), _wrap(box, 2, dz), ux, uy, uz
 
 
@@ -187,7 +203,7 @@ def _coords(cells, c):
 
 
 @block_body
-def _crossing(g, cells, box, i):
+def _crossing(g, cells, box, i, straight):
     """The time [s] from now until grain i leaves its cell, and through which face."""
     cx, cy, cz = _coords(cells, cells.cell[i])
     coords = (cx, cy, cz)
@@ -196,7 +212,7 @@ def _crossing(g, cells, box, i):
     for axis in range(3):
         lo, hi = _cell_bounds(cells, box, coords[axis], axis)
         t, up = flight.boundary_time(g.positions[i, axis], g.velocities[i, axis],
-                                     g.gravity[axis], lo, hi)
+                                     0.0 if straight else g.gravity[axis], lo, hi)
         if t < best:
             best = t
             face = 2 * axis + up
@@ -204,7 +220,8 @@ def _crossing(g, cells, box, i):
 
 
 @block_body
-def _scan_pairs(g, cells, box, i, now, fx, nx, fy, ny, fz, nz, best, partner, count):
+def _scan_pairs(g, cells, box, i, now, fx, nx, fy, ny, fz, nz, best, partner, count,
+                straight):
     """The earliest collision [s from now] of grain i with the grains of the block of
     cells fx + a, a < nx (unwrapped, _cell_range; and so for y, z), if earlier than
     ``best``: the updated (best, partner, partner's counter).  Each cell's periodic
@@ -225,7 +242,7 @@ def _scan_pairs(g, cells, box, i, now, fx, nx, fy, ny, fz, nz, best, partner, co
                 j = cells.head[row + x]
                 while j >= 0:
                     if j != i:
-                        dx, dy, dz, ux, uy, uz = _relative(g, i, j, now)
+                        dx, dy, dz, ux, uy, uz = _relative(g, i, j, now, straight)
                         dx += sx
                         dy += sy
                         dz += sz
@@ -263,21 +280,21 @@ def _scan_walls(g, walls, clock, i, now, best, kind, partner):
 
 
 @block_body
-def predict(g, cal, cells, walls, box, clock, i, now):
+def predict(g, cal, cells, walls, box, clock, i, now, straight):
     """Find grain i's next events from ``now`` [s] (i must be at ``now``) and put them
     in the calendar: its cell crossing, and the earliest of its collisions with the
     grains of the adjacent cells and with the walls before the crossing (walls are
     looked for again at each crossing)."""
-    if g.fixed[i] != 0:
+    if not straight and g.fixed[i] != 0:
         _schedule(cal, i, math.inf, NONE, -1, 0, math.inf, -1)
         return
-    crossing, face = _crossing(g, cells, box, i)
+    crossing, face = _crossing(g, cells, box, i, straight)
     cx, cy, cz = _coords(cells, cells.cell[i])
     fx, nx = _cell_range(cells, box, cx, 0)
     fy, ny = _cell_range(cells, box, cy, 1)
     fz, nz = _cell_range(cells, box, cz, 2)
     best, partner, count = _scan_pairs(g, cells, box, i, now, fx, nx, fy, ny, fz, nz,
-                                       math.inf, -1, 0)
+                                       math.inf, -1, 0, straight)
     kind = PAIR if partner >= 0 else NONE
     best, kind, partner = _scan_walls(g, walls, clock, i, now, min(best, crossing), kind,
                                       partner) if walls.kind.size else (best, kind, partner)
@@ -285,12 +302,12 @@ def predict(g, cal, cells, walls, box, clock, i, now):
 
 
 @block_body
-def predict_crossed(g, cal, cells, walls, box, clock, i, now, face):
+def predict_crossed(g, cal, cells, walls, box, clock, i, now, face, straight):
     """Grain i's next events after it crossed ``face`` into its new cell at ``now``: its
     trajectory is unchanged, so the collision predicted before stands (if with a grain:
     the counters judge it when it comes up); only the grains of the layer of cells now
     adjacent beyond the face, the walls and the next crossing are looked at."""
-    crossing, next_face = _crossing(g, cells, box, i)
+    crossing, next_face = _crossing(g, cells, box, i, straight)
     best = math.inf
     partner = -1
     count = 0
@@ -315,7 +332,7 @@ def predict_crossed(g, cal, cells, walls, box, clock, i, now, face):
         else:
             fz, nz = first, 1
         best, partner, count = _scan_pairs(g, cells, box, i, now, fx, nx, fy, ny, fz, nz,
-                                           best, partner, count)
+                                           best, partner, count, straight)
     kind = PAIR if partner >= 0 else NONE
     best, kind, partner = _scan_walls(g, walls, clock, i, now, min(best, crossing), kind,
                                       partner) if walls.kind.size else (best, kind, partner)
@@ -364,10 +381,10 @@ def _since(g, i, now):
 
 
 @block_body
-def _pair_collision(g, tables, clock, counters, box, i, j, now):
+def _pair_collision(g, tables, clock, counters, box, i, j, now, straight):
     """Carry out the collision of grains i and j at ``now`` (both there): Pérez Eq. 1-10
     through collision.collision_impulse, energy and virial bookkeeping."""
-    dx, dy, dz, ux, uy, uz = _separation(g, box, i, j, now)
+    dx, dy, dz, ux, uy, uz = _separation(g, box, i, j, now, straight)
     size = math.sqrt(dx * dx + dy * dy + dz * dz)
     nx = -dx / size              # from a = i to b = j (Pérez Eq. 1)
     ny = -dy / size
@@ -485,10 +502,22 @@ def _cross(g, cells, box, i, face):
 
 
 @driver
-def run_events(g, cal, cells, walls, box, tables, clock, counters, end):
+def run_events(g, cal, cells, walls, box, tables, clock, counters, end, straight):
     """Carry out every event before ``end`` [s] (simulated time); returns DONE, or
     COLLAPSED when SAME_TIME_LIMIT events in a row fall at one instant.  The grains are
-    left at their own times: ``synchronise`` brings them to ``end``."""
+    left at their own times: ``synchronise`` brings them to ``end``.  ``straight`` (no
+    gravity and no held grain) runs a copy of the loop compiled without their terms,
+    which gives the same numbers."""
+    if straight:
+        return _event_loop(g, cal, cells, walls, box, tables, clock, counters, end,
+                           np.bool_(True))
+    return _event_loop(g, cal, cells, walls, box, tables, clock, counters, end,
+                       np.bool_(False))
+
+
+@block_body
+def _event_loop(g, cal, cells, walls, box, tables, clock, counters, end, straight):
+    """run_events with ``straight`` a constant."""
     last = -math.inf
     while True:
         i = cal.heap[0]
@@ -504,37 +533,37 @@ def run_events(g, cal, cells, walls, box, tables, clock, counters, end):
             last = now
         clock[TIME] = now
         counters[EVENTS] += 1
-        _advance(g, i, now)
+        _advance(g, i, now, straight)
         if cal.cross_time[i] <= cal.next_time[i]:
             counters[CROSSINGS] += 1
             face = cal.face[i]
             _cross(g, cells, box, i, face)
-            predict_crossed(g, cal, cells, walls, box, clock, i, now, face)
+            predict_crossed(g, cal, cells, walls, box, clock, i, now, face, straight)
             continue
         kind = cal.kind[i]
         if kind == PAIR:
             j = cal.partner[i]
             if g.collisions[j] != cal.count[i]:
                 counters[STALE] += 1
-                predict(g, cal, cells, walls, box, clock, i, now)
+                predict(g, cal, cells, walls, box, clock, i, now, straight)
                 continue
-            _advance(g, j, now)
-            _pair_collision(g, tables, clock, counters, box, i, j, now)
-            predict(g, cal, cells, walls, box, clock, i, now)
-            predict(g, cal, cells, walls, box, clock, j, now)
+            _advance(g, j, now, straight)
+            _pair_collision(g, tables, clock, counters, box, i, j, now, straight)
+            predict(g, cal, cells, walls, box, clock, i, now, straight)
+            predict(g, cal, cells, walls, box, clock, j, now, straight)
         elif kind == WALL:
             _wall_collision(g, walls, tables, clock, counters, i, cal.partner[i], now)
-            predict(g, cal, cells, walls, box, clock, i, now)
+            predict(g, cal, cells, walls, box, clock, i, now, straight)
         else:
             counters[RECHECKS] += 1
-            predict(g, cal, cells, walls, box, clock, i, now)
+            predict(g, cal, cells, walls, box, clock, i, now, straight)
 
 
 @driver
 def synchronise(g, t):
     """Bring every grain to time t [s] (free flight)."""
     for i in range(g.radii.size):
-        _advance(g, i, t)
+        _advance(g, i, t, np.bool_(False))
 
 
 @driver
@@ -578,8 +607,8 @@ def _close_pairs(g, cells, box, slack, out_i, out_j, out_gap):
                     j = cells.head[(z * ny_ + y) * nx_ + x]
                     while j >= 0:
                         if j > i:
-                            dx, dy, dz, ux, uy, uz = _separation(g, box, i, j,
-                                                                 g.local_time[i])
+                            dx, dy, dz, ux, uy, uz = _separation(
+                                g, box, i, j, g.local_time[i], np.bool_(False))
                             gap = math.sqrt(dx * dx + dy * dy + dz * dz) \
                                 - g.radii[i] - g.radii[j]
                             if gap <= slack:
@@ -613,4 +642,4 @@ def predict_all(g, cal, cells, walls, box, clock):
         cal.time[i] = math.inf
     build_heap(cal.heap, cal.key, cal.where, cal.time)
     for i in range(g.radii.size):
-        predict(g, cal, cells, walls, box, clock, i, now)
+        predict(g, cal, cells, walls, box, clock, i, now, np.bool_(False))
