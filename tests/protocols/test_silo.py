@@ -150,19 +150,26 @@ def test_jam_detector_and_avalanche_bookkeeping_on_a_scripted_sequence():
     assert last["start_s"] == 1.0 and last["duration_s"] == pytest.approx(0.2)
 
 
+def _tapping(fixed, **settings):
+    """A Discharge phase of the small silo with protocol ``settings`` and a scripted
+    engine whose grains are held as ``fixed`` says: (phase, engine)."""
+    protocol = SimpleNamespace(p=validate(small(**settings)).protocol, vessel=None,
+                               log=lambda message: None)
+    engine = _Engine()
+    engine.walls.offset = {name: np.zeros(3) for name in
+                           ("xlo", "xhi", "floor_left", "floor_right", "gate")}
+    engine.place_wall = lambda wall, where: None
+    engine.state.fixed = np.array(fixed, np.int8)
+    return Discharge(protocol), engine
+
+
 def test_a_parallel_tap_starts_the_disks_with_the_walls():
     """tap_start "parallel": the free disks get the walls' starting velocity 2 pi nu A
     upwards (held ones none); "walls" leaves the disks as they are."""
     for start, kicked in (("parallel", True), ("walls", False)):
-        protocol = SimpleNamespace(p=validate(small(tap_start=start)).protocol,
-                                   vessel=None, log=lambda message: None)
-        engine = _Engine()
-        engine.walls.offset = {name: np.zeros(3) for name in
-                               ("xlo", "xhi", "floor_left", "floor_right", "gate")}
-        engine.state.fixed = np.array([0, 1, 0], np.int8)
-        state = {"current": {"start_s": 0.0, "size": 0, "first": True}}
-        Discharge(protocol).tap(engine, state)
-        p = protocol.p
+        phase, engine = _tapping([0, 1, 0], tap_start=start)
+        phase.tap(engine, {"current": {"start_s": 0.0, "size": 0, "first": True}})
+        p = phase.p
         expected = [([0, 2], (0.0, 2 * np.pi * p.tap_frequency * p.tap_amplitude, 0.0))]
         assert engine.kicks == (expected if kicked else [])
 
@@ -172,17 +179,9 @@ def test_a_parallel_tap_ends_the_disks_with_the_walls():
     disks lose the walls' velocity there, -2 pi nu A (so they gain 2 pi nu A upwards);
     "walls" leaves them as they are."""
     for end, kicked in (("parallel", True), ("walls", False)):
-        protocol = SimpleNamespace(p=validate(small(tap_end=end)).protocol,
-                                   vessel=None, log=lambda message: None)
-        engine = _Engine()
-        engine.walls.offset = {name: np.zeros(3) for name in
-                               ("xlo", "xhi", "floor_left", "floor_right", "gate")}
-        engine.place_wall = lambda wall, where: None
-        engine.state.fixed = np.array([1, 0, 0], np.int8)
+        phase, engine = _tapping([1, 0, 0], tap_end=end)
         engine.time = 2.0
         state = {"current": {"start_s": 0.0, "size": 0, "first": True}, "last_exit_s": 0.0}
-        phase = Discharge(protocol)
-        p = protocol.p
         phase.tap(engine, state)
         engine.kicks.clear()
         engine.time = state["tap_end_s"]
@@ -191,6 +190,7 @@ def test_a_parallel_tap_ends_the_disks_with_the_walls():
             assert engine.kicks == []
             continue
         ((indices, (dx, dy, dz)),) = engine.kicks
+        p = phase.p
         assert indices == [1, 2] and dx == dz == 0.0
         assert dy == pytest.approx(2 * np.pi * p.tap_frequency * p.tap_amplitude, rel=1e-12)
 
