@@ -32,7 +32,8 @@ def small(count=200, width=0.05, hole=0.015, **protocol):
 
 def test_the_example_is_the_papers_silo():
     """examples/silo.toml holds Pérez's values in SI (N, d_ave, Delta_d, D, sigma, kappa,
-    epsilon^2, mu, g, A, nu, c) and a time step of 0.01 t_coll."""
+    epsilon^2, mu, g, A, nu, c), the static friction spring kappa_s = kappa/3 that his
+    Sec. 3.2 prescribes for disks, and a time step of 0.01 t_coll."""
     c = validate(EXAMPLE)
     m = c.materials[0]
     assert c.grains.count == 2000 and c.run.dim == 2
@@ -40,6 +41,7 @@ def test_the_example_is_the_papers_silo():
     assert c.walls.container.hi[0] - c.walls.container.lo[0] == 0.15
     assert (m.density, m.kn, m.friction_sliding, m.friction_static) == (8.0, 4e3, 0.5, 0.5)
     assert m.restitution ** 2 == pytest.approx(0.9, rel=1e-6)
+    assert m.kt == pytest.approx(m.kn / 3, rel=1e-6)
     assert c.run.gravity == (0.0, -9.81, 0.0)
     p = c.protocol
     assert (p.tap_amplitude, p.tap_frequency, p.jam_factor) == (0.006, 8.0, 8.0)
