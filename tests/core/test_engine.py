@@ -163,9 +163,6 @@ def test_orientations_off_leave_the_trajectory_as_it_is(integrator):
     assert np.abs(on.angular_velocities).max() > 1.0
     np.testing.assert_array_equal(off.orientations, start)
     assert np.abs(on.orientations - start).max() > 1e-3
-    with pytest.raises(ValueError, match="CPU option"):
-        gd.Simulation(on, runs[True].materials, runs[True].model, backend="gpu",
-                      orientations=False)
 
 
 def test_capacity_overflow_gives_identical_run():

@@ -27,8 +27,9 @@ class SoftEngine(Section):
     overlap_limit: Float = _f(0.2, "stop when an overlap exceeds this fraction of the "
                               "smaller radius [-]; (0, 1]", gt=0, le=1)
     orientations: bool = _f(True, "turn the grains' orientations every step; false "
-                            "leaves them as they are (CPU only; they act on nothing, and "
-                            "turning costs about a tenth of a step)")
+                            "leaves them as they are (on the CPU; the GPU always turns "
+                            "them; they act on nothing, and turning costs about a tenth "
+                            "of a step)")
 
     @field_validator("integrator")
     @classmethod

@@ -70,9 +70,10 @@ class Simulation:
     integrator : one of integrators.NAMES (integrators/ids.py lists each with its equation).
     backend : "cpu" (compiled loops, numba threads) or "gpu" (engines/soft/gpu/engine.py: the same
       step on an NVIDIA GPU; the arrays travel to the device and back once per chunk).
-    orientations : False leaves state.orientations as they are (on the CPU): spheres
+    orientations : False leaves state.orientations as they are on the CPU: spheres
       and disks turn without their orientation acting on anything, and turning each
-      grain every step costs about 8 ns (a tenth of a step of a 1 000-grain bed).
+      grain every step costs about 8 ns (a tenth of a step of a 1 000-grain bed).  The
+      GPU always turns them (False is ignored there), so one config runs on both.
 
     Everything a run needs to continue exactly:
       state arrays (State.arrays()), ``integrator_state`` (the integrator's per-grain
@@ -94,10 +95,7 @@ class Simulation:
                  orientations=True, symmetry=()):
         if backend not in ("cpu", "gpu"):
             raise ValueError(f"backend must be 'cpu' or 'gpu', got {backend!r}")
-        if backend == "gpu" and not orientations:
-            raise ValueError("orientations=False is a CPU option: the GPU always turns "
-                             "the grains")
-        self.orientations = bool(orientations)
+        self.orientations = bool(orientations) or backend == "gpu"
         if backend == "gpu":
             from .gpu import unavailable
             reason = unavailable()
