@@ -179,6 +179,11 @@ def sweep_command(
     threads_per_worker: Annotated[int, typer.Option(
         help="numba threads of each run (each worker runs one point at a time).",
         min=1)] = 1,
+    keep: Annotated[Optional[pathlib.Path], typer.Option(
+        help="Keep folder: the record of each finished run (config.toml, meta.json, "
+        "results.json), the sweep's files and summaries are copied there, and the runs "
+        "recorded there count as finished (a folder to commit, or to carry to another "
+        "machine).")] = None,
     dry_run: Annotated[bool, typer.Option(
         "--dry-run", help="Check the sweep and list its points, run nothing.")] = False,
 ):
@@ -213,7 +218,7 @@ def sweep_command(
                               else ""))
             return
         report = run_sweep(plan, target, scheduler=scheduler, workers=workers,
-                           threads_per_worker=threads_per_worker)
+                           threads_per_worker=threads_per_worker, keep=keep)
     except (ConfigError, FileExistsError) as err:
         _fail(err)
     except SweepInterrupted as err:

@@ -24,6 +24,14 @@ the numbers it gives alone.
 Running the same command again skips finished runs (results.json present), resumes the
 interrupted ones from their last checkpoint and retries the failed ones (error.txt).
 
+A *keep* folder (``run(..., keep=folder)``, ``graindyn sweep --keep``) holds the record
+of every finished run (config.toml, meta.json, results.json: what the summaries read,
+a few tens of kB a run, without checkpoints, VTK files or series) in the sweep
+directory's layout, with the sweep's files and summaries: each run's record is copied
+there as the run finishes, and the runs recorded there count as finished in any sweep
+directory, on any machine.  It is the part of a sweep worth committing or carrying off
+a cluster's scratch disk.
+
 The summary is pluggable per protocol: the protocol class
 (``protocols.PROTOCOLS[config.protocol.kind]``) may define
 ``summarize_sweep(sweep_dir, points)``; it gets the sweep directory and the collected
@@ -56,6 +64,7 @@ CONNECT_TIMEOUT = "20s"           # to a scheduler given by address
 REFERENCE = "reference"
 ERROR_FILE = "error.txt"
 RESULTS_FILE = "results.json"
+RECORD = ("config.toml", "meta.json", RESULTS_FILE)    # a finished run's record (keep)
 
 
 class SweepInterrupted(RuntimeError):
@@ -365,6 +374,60 @@ def run_point(config: Config, directory, threads=1):
     return {"status": "finished", "how": how, "seconds": time.perf_counter() - start}
 
 
+# ---------------------------------------------------------------- keep folder
+def restore_records(sweep: Sweep, out, keep):
+    """Copy into the sweep directory ``out`` the records of the runs finished in the
+    keep folder ``keep`` that ``out`` does not hold finished (an unfinished run there is
+    replaced); returns how many.  ConfigError, before anything is copied, if a record
+    there is of another config than the sweep's point."""
+    out, keep = pathlib.Path(out), pathlib.Path(keep)
+    kept = [p for p in sweep.runs if finished(keep / p.name) and not finished(out / p.name)]
+    problems = []
+    for p in kept:
+        try:
+            differences = _stored_differences(p, load(keep / p.name / "config.toml"))
+        except (ConfigError, OSError) as err:
+            differences = [str(err).splitlines()[0]]
+        if differences:
+            problems.append(f"{keep / p.name} holds a run of another config ("
+                            + "; ".join(differences[:3]) + ")")
+    if problems:
+        raise ConfigError(f"--keep {keep}: {len(problems)} record(s) do not match the "
+                          "sweep:\n  " + "\n  ".join(problems))
+    for p in kept:
+        target = out / p.name
+        if target.exists():
+            if not (target / "config.toml").exists() and any(target.iterdir()):
+                raise FileExistsError(f"{target} holds files that are not a graindyn run: "
+                                      "move them away or choose another --out")
+            shutil.rmtree(target)
+        keep_record(keep / p.name, target)
+    return len(kept)
+
+
+def keep_record(directory, target):
+    """Copy the record (RECORD) of the finished run in ``directory`` into ``target``,
+    results.json last, so that a copy cut short never looks finished."""
+    target = pathlib.Path(target)
+    target.mkdir(parents=True, exist_ok=True)
+    for name in RECORD:
+        source = pathlib.Path(directory) / name
+        if source.exists():
+            shutil.copyfile(source, target / name)
+
+
+def keep_sweep_files(out, keep, paths=()):
+    """Copy the sweep's own files (sweep.toml, base.toml, points.json) and the
+    summaries ``paths`` (within ``out``) into the keep folder, in the same places."""
+    out, keep = pathlib.Path(out), pathlib.Path(keep)
+    for path in [out / "sweep.toml", out / "base.toml", out / "points.json", *paths]:
+        path = pathlib.Path(path)
+        if path.is_file() and path.is_relative_to(out):
+            target = keep / path.relative_to(out)
+            target.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(path, target)
+
+
 # ---------------------------------------------------------------- running
 def _stored_differences(point, stored):
     """Fields where the run stored in a point's directory differs from the point's
@@ -521,12 +584,15 @@ class Report:
 
 
 def run(sweep: Sweep, out, scheduler=None, workers=None, threads_per_worker=1,
-        client=None, echo=None):
+        client=None, echo=None, keep=None):
     """Run every unfinished point of ``sweep`` into the sweep directory ``out`` on Dask,
     then write the summary; returns the Report.  ``client`` (a distributed.Client) wins
     over ``scheduler`` (an address), which wins over a LocalCluster of ``workers``
     processes.  ``echo(text)`` gets one line per finished point (default: rich).
-    SweepInterrupted on Ctrl-C (after the running points were cancelled)."""
+    ``keep``: a keep folder (module docstring): the runs recorded there are taken as
+    finished, and every run that finishes, the sweep's files and the summaries are
+    recorded there.  SweepInterrupted on Ctrl-C (after the running points were
+    cancelled)."""
     import numba
 
     say = _printer() if echo is None else (lambda text, style=None: echo(text))
@@ -537,26 +603,41 @@ def run(sweep: Sweep, out, scheduler=None, workers=None, threads_per_worker=1,
     if scheduler is None and client is None and threads > numba.config.NUMBA_NUM_THREADS:
         raise ConfigError(f"--threads-per-worker = {threads}: this machine offers at most "
                           f"{numba.config.NUMBA_NUM_THREADS}")
+    restored = restore_records(sweep, out, keep) if keep is not None else 0
     prepare(sweep, out)
     runs = sweep.runs
+    if keep is not None:
+        keep = pathlib.Path(keep)
+        for p in runs:
+            if finished(out / p.name) and not finished(keep / p.name):
+                keep_record(out / p.name, keep / p.name)
+        keep_sweep_files(out, keep)
     todo = [p for p in runs if not finished(out / p.name)]
     say(f"sweep {sweep.path.name}: {len(runs)} runs ({len(sweep.points)} points), "
-        f"{len(runs) - len(todo)} finished earlier, {len(todo)} to run, into {out}")
+        f"{len(runs) - len(todo)} finished earlier"
+        + (f" ({restored} of them taken from {keep})" if restored else "")
+        + f", {len(todo)} to run, into {out}")
+
     batched = [p for p in todo if p.config.run.backend == "gpu"] \
         if scheduler is None and client is None else []
     todo = [p for p in todo if p not in batched]
     if batched:
-        _run_batched(batched, out, threads, say)
+        _run_batched(batched, out, threads, say, keep)
     if todo:
         with _dask_client(scheduler, workers, threads, len(todo), client) as (c, where):
             say(f"running on {where}")
-            _submit_all(c, todo, out, threads, say)
-    return finish(sweep, out, say)
+            _submit_all(c, todo, out, threads, say, keep)
+    report = finish(sweep, out, say)
+    if keep is not None:
+        keep_sweep_files(out, keep, report.paths)
+    return report
 
 
-def _say_outcome(say, head, p, outcome, out):
-    """One line for a run that ended."""
+def _say_outcome(say, head, p, outcome, out, keep=None):
+    """One line for a run that ended; a finished one's record goes to ``keep``."""
     if outcome["status"] == "finished":
+        if keep is not None:
+            keep_record(out / p.name, pathlib.Path(keep) / p.name)
         say(f"{head} finished {p.name} ({outcome['how']}, {outcome['seconds']:.1f} s)",
             style="green")
     else:
@@ -564,7 +645,7 @@ def _say_outcome(say, head, p, outcome, out):
             f"{out / p.name / ERROR_FILE})", style="bold red")
 
 
-def _run_batched(todo, out, threads, say):
+def _run_batched(todo, out, threads, say, keep=None):
     """Runs with backend gpu, all in this process as one ensemble on the GPU
     (engines/soft/gpu/batch.py: each run's protocol in its own thread, their chunks launched
     together); each gets the numbers it gets alone."""
@@ -577,7 +658,7 @@ def _run_batched(todo, out, threads, say):
 
     def done(index, outcome):
         ended.append(index)
-        _say_outcome(say, f"[{len(ended)}/{len(todo)}]", todo[index], outcome, out)
+        _say_outcome(say, f"[{len(ended)}/{len(todo)}]", todo[index], outcome, out, keep)
 
     batch = Batch()
     try:
@@ -589,7 +670,7 @@ def _run_batched(todo, out, threads, say):
     say(f"the GPU ensemble ran {batch.rounds} rounds of chunks")
 
 
-def _submit_all(client, todo, out, threads, say):
+def _submit_all(client, todo, out, threads, say, keep=None):
     from distributed import as_completed
 
     token = uuid.uuid4().hex[:8]
@@ -605,7 +686,7 @@ def _submit_all(client, todo, out, threads, say):
             p = futures[future]
             outcome = _outcome(future, out / p.name)
             done += 1
-            _say_outcome(say, f"[{done}/{len(todo)}]", p, outcome, out)
+            _say_outcome(say, f"[{done}/{len(todo)}]", p, outcome, out, keep)
     except KeyboardInterrupt:
         client.cancel(list(futures))
         raise SweepInterrupted(

@@ -204,6 +204,39 @@ def test_sweep_on_a_scheduler_combines_the_seeds(scheduler, tmp_path):
     assert "running on" not in again.output
 
 
+def test_keep_folder_records_the_runs_and_a_new_directory_starts_from_it(scheduler,
+                                                                        tmp_path):
+    """--keep: each finished run's record (config, meta, results; no checkpoints) and
+    the summaries land in the keep folder; a fresh sweep directory with the same keep
+    folder runs nothing and summarizes the same numbers; records of another config are
+    refused before anything is copied."""
+    path = write_sweep(tmp_path, {"seeds": [1, 2]})
+    keep = tmp_path / "kept"
+    args = ["sweep", str(path), "--scheduler", scheduler, "--keep", str(keep)]
+    first = runner.invoke(app, args + ["--out", str(tmp_path / "out1")])
+    assert first.exit_code == 0, first.output
+    for seed in (1, 2):
+        record = keep / "reference" / f"seed-{seed}"
+        assert sorted(p.name for p in record.iterdir()) == sorted(sweeps.RECORD)
+    for name in ("sweep.toml", "base.toml", "points.json", "summary.json", "summary.csv"):
+        assert (keep / name).is_file()
+    second = runner.invoke(app, args + ["--out", str(tmp_path / "out2")])
+    assert second.exit_code == 0, second.output
+    assert "2 finished earlier (2 of them taken from" in second.output
+    assert "running on" not in second.output
+    summaries = [json.loads((tmp_path / out / "summary.json").read_text())["groups"]
+                 for out in ("out1", "out2")]
+    assert summaries[0] == summaries[1]
+    other = write_sweep(tmp_path / "other", {"seeds": [1],
+                                             "overrides": {"protocol.max_time": 0.02}})
+    refused = runner.invoke(app, ["sweep", str(other), "--scheduler", scheduler, "--keep",
+                                  str(keep), "--out", str(tmp_path / "out3")])
+    assert refused.exit_code == 2
+    assert "record(s) do not match the sweep" in refused.output
+    assert "protocol.max_time" in refused.output
+    assert not (tmp_path / "out3" / "reference").exists()
+
+
 def test_unreachable_scheduler_is_a_clear_error(tmp_path, monkeypatch):
     monkeypatch.setattr(sweeps, "CONNECT_TIMEOUT", "1s")
     path = write_sweep(tmp_path, {"seeds": [1]})
