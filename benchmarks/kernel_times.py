@@ -1,14 +1,20 @@
 """Where a step goes: each kernel of the compiled step timed alone on a benchmark bed.
 
     python benchmarks/kernel_times.py STATE CYL SIZE E e DT SKIN THREADS [REPS]
+    python benchmarks/kernel_times.py RUN_DIR THREADS [REPS]
 
-Builds the bed of benchmarks/lammps_bed.py (same arguments), runs 500 steps, then
+Builds the bed of benchmarks/lammps_bed.py (same arguments), or the engine of a run
+directory at its last checkpoint (any soft-engine run: its grains, walls, law and
+integrator), runs 500 steps, then
 times, each in a compiled loop of REPS calls (default 500, best of 5 batches), the
-kernels one step of the velocity Verlet calls (engines/soft/loop.py): the half-skin test,
-drift, pair forces, wall forces (and the sum onto walls), the gather-and-correct pass (alone, and with the next step's drift),
-and a whole step (run_chunk).  Prints microseconds per call.  The kernels run on the
+kernels of a step (engines/soft/loop.py): the half-skin test,
+drift, pair forces, wall forces (and the sum onto walls), the gather-and-correct pass
+(alone, and with the next step's drift), and a whole step (run_chunk: its integrator
+may evaluate the forces more than once, as the optimized velocity Verlet does).
+Prints microseconds per call.  The kernels run on the
 settled bed, restored before each batch of calls.
 """
+import pathlib
 import sys
 import time
 
@@ -18,17 +24,33 @@ import numpy as np
 from lammps_bed import bed
 
 
+def from_run(folder):
+    """The engine of the run in ``folder`` at its last checkpoint."""
+    from graindyn.config import load
+    from graindyn.output.rundir import RunDirectory
+    from graindyn.runner import restored
+
+    folder = pathlib.Path(folder)
+    return restored(RunDirectory(folder), load(folder / "config.toml"))[1]
+
+
 def main(argv):
-    if len(argv) not in (8, 9):
+    if len(argv) in (2, 3) and pathlib.Path(argv[0]).is_dir():
+        threads = argv[1]
+        reps = int(argv[2]) if len(argv) == 3 else 500
+        numba.set_num_threads(int(threads))
+        sim = from_run(argv[0])
+    elif len(argv) in (8, 9):
+        state_file, cyl, size, young, rest, dt, skin, threads = argv[:8]
+        reps = int(argv[8]) if len(argv) == 9 else 500
+        numba.set_num_threads(int(threads))
+        sim = bed(state_file, cyl, size, young, rest, dt, skin)
+    else:
         sys.exit(__doc__)
-    state_file, cyl, size, young, rest, dt, skin, threads = argv[:8]
-    reps = int(argv[8]) if len(argv) == 9 else 500
-    numba.set_num_threads(int(threads))
     from graindyn.engines.soft import loop
     from graindyn.engines.soft.contacts import PAIRS, PLANAR, WALLS, contact_forces
     from graindyn.engines.soft.integrators import before_force
 
-    sim = bed(state_file, cyl, size, young, rest, dt, skin)
     sim.run(steps=500)
     args = (sim.model_ids, sim.params, sim._law, sim.clock, sim._grains(), sim._walls(), sim._periodic(), sim.pairs, sim.counters,
             sim.integrator_history, sim.block_scratch, sim.images)

@@ -244,18 +244,11 @@ def execute(config: Config, out, show_progress=True, echo=print):
         rundir.close()
 
 
-def resume(out, show_progress=True, echo=print, threads=None, backend=None):
-    """Continue the run in ``out`` from its last good checkpoint, on ``backend`` (cpu or
-    gpu; default: the run's own); returns its results."""
-    rundir = RunDirectory(out)
-    config = load(rundir.path / "config.toml")
-    if backend is not None and backend != config.run.backend:
-        config.run.backend = backend
-        check(config)
-    started = rundir.meta()
-    threads, why = _threads(threads or started.get("threads"),
-                            started.get("grains", config.grains.count))
-    arrays, meta, step, t = checkpoint.latest(rundir.checkpoints, warn=echo)
+def restored(rundir, config, warn=print):
+    """The protocol and the engine of the run in ``rundir`` (a RunDirectory) with
+    ``config``, at its last good checkpoint: (protocol, engine, checkpoint meta, step,
+    time [s]).  CheckpointError when no checkpoint fits."""
+    arrays, meta, step, t = checkpoint.latest(rundir.checkpoints, warn=warn)
     protocol = build.protocol(config)
     materials = arrays["grains/materials"]
     density = np.array([m.density for m in config.materials])[materials]
@@ -267,6 +260,21 @@ def resume(out, show_progress=True, echo=print, threads=None, backend=None):
     except ValueError as err:
         raise checkpoint.CheckpointError(f"{rundir.path}: the checkpoint does not fit this "
                                          f"run's config: {err}") from None
+    return protocol, engine, meta, step, t
+
+
+def resume(out, show_progress=True, echo=print, threads=None, backend=None):
+    """Continue the run in ``out`` from its last good checkpoint, on ``backend`` (cpu or
+    gpu; default: the run's own); returns its results."""
+    rundir = RunDirectory(out)
+    config = load(rundir.path / "config.toml")
+    if backend is not None and backend != config.run.backend:
+        config.run.backend = backend
+        check(config)
+    started = rundir.meta()
+    threads, why = _threads(threads or started.get("threads"),
+                            started.get("grains", config.grains.count))
+    protocol, engine, meta, step, t = restored(rundir, config, warn=echo)
     rng = np.random.default_rng()
     rng.bit_generator.state = meta["rng"]
     rundir.log(f"resume from t = {t:.6g} s (step {step}), {_threading_line(threads, why)}, "
