@@ -382,15 +382,7 @@ def restore_records(sweep: Sweep, out, keep):
     there is of another config than the sweep's point."""
     out, keep = pathlib.Path(out), pathlib.Path(keep)
     kept = [p for p in sweep.runs if finished(keep / p.name) and not finished(out / p.name)]
-    problems = []
-    for p in kept:
-        try:
-            differences = _stored_differences(p, load(keep / p.name / "config.toml"))
-        except (ConfigError, OSError) as err:
-            differences = [str(err).splitlines()[0]]
-        if differences:
-            problems.append(f"{keep / p.name} holds a run of another config ("
-                            + "; ".join(differences[:3]) + ")")
+    problems = [line for line in (_mismatch(p, keep / p.name) for p in kept) if line]
     if problems:
         raise ConfigError(f"--keep {keep}: {len(problems)} record(s) do not match the "
                           "sweep:\n  " + "\n  ".join(problems))
@@ -452,21 +444,24 @@ def _stored_differences(point, stored):
     return out
 
 
+def _mismatch(point, folder):
+    """A line naming ``folder`` when the run stored there (its config.toml) is of
+    another config than ``point``'s, else None."""
+    try:
+        differences = _stored_differences(point, load(pathlib.Path(folder) / "config.toml"))
+    except (ConfigError, OSError) as err:
+        differences = [str(err).splitlines()[0]]
+    if differences:
+        return f"{folder} holds a run of another config (" + "; ".join(differences[:3]) + ")"
+    return None
+
+
 def prepare(sweep: Sweep, out):
     """Create the sweep directory (copies of the sweep file and base config, points.json)
     and check that the runs already there belong to this sweep; ConfigError if not."""
     out = pathlib.Path(out)
-    problems = []
-    for p in sweep.runs:
-        stored = out / p.name / "config.toml"
-        if stored.exists():
-            try:
-                differences = _stored_differences(p, load(stored))
-            except ConfigError as err:
-                differences = [str(err).splitlines()[0]]
-            if differences:
-                problems.append(f"{out / p.name} holds a run of another config ("
-                                + "; ".join(differences[:3]) + ")")
+    problems = [line for line in (_mismatch(p, out / p.name) for p in sweep.runs
+                                  if (out / p.name / "config.toml").exists()) if line]
     if problems:
         raise ConfigError(f"{out}: {len(problems)} run director(ies) do not match the sweep "
                           "(remove them or choose another --out):\n  " + "\n  ".join(problems))
