@@ -41,15 +41,17 @@ STRIDE = CAP + 8
 # workspace rows: the inputs of contact_response (a wall contact stages them), the
 # data a pair's geometry is computed from (a pair stages them: its separation
 # r_i - r_j, radii, masses, fixed flags, w_i and w_j), the 11 outputs of
-# contact_response and the pair's overlap / smaller radius (RATIO), the pair-table
-# columns, the history values
+# contact_response and the pair's overlap / smaller radius (RATIO), which pair-table
+# row the column holds (TABLE: a * materials + b for materials a and b, -1 for none
+# yet), the pair-table columns, the history values
 (OVERLAP, LEVER_I, LEVER_J, R_EFF, M_EFF, NX, NY, NZ, DVX, DVY, DVZ, WX, WY, WZ, DWX, DWY,
  DWZ, SX, SY, SZ, R_I, R_J, M_I, M_J, FIXED_I, FIXED_J) = range(26)
 W_I = FIXED_J + 1                # three rows each
 W_J = W_I + 3
 OUTPUT = W_J + 3
 RATIO = OUTPUT + 11
-PARAMS = RATIO + 1
+TABLE = RATIO + 1
+PARAMS = TABLE + 1
 HISTORY = PARAMS + len(COL)
 MAX_HISTORY = 32       # most history values a model may keep
 WORKSPACE = (HISTORY + MAX_HISTORY) * STRIDE
@@ -262,8 +264,9 @@ def workspace(address, blocks, history_size):
     block dissipated (blocks, 2) and the collisions it counted (blocks, 2)."""
     if history_size > MAX_HISTORY:
         raise ValueError(f"a model keeps at most {MAX_HISTORY} history values")
-    return LawWorkspace(address=address,
-                        work=_aligned_zeros((blocks, workspace_rows(history_size) * STRIDE)),
+    work = _aligned_zeros((blocks, workspace_rows(history_size) * STRIDE))
+    work[:, TABLE * STRIDE:(TABLE + 1) * STRIDE] = -1.0
+    return LawWorkspace(address=address, work=work,
                         slots=np.zeros((blocks, 3, CAP), np.int64),
                         dirty=np.ones(0, np.uint8), sums=np.zeros((blocks, 2)),
                         collisions=np.zeros((blocks, 2), np.int64))
@@ -282,12 +285,16 @@ def _aligned_zeros(shape):
 def prepare(law, params, pair_capacity):
     """The law bundle (bundles.LawWorkspace) made ready for a chunk: with a single
     material, its pair-table row in every column of the workspaces (the pair loop then
-    does not copy it for every contact; the table may have changed between runs), and
-    every pair slot marked dirty (its force and history may be non-zero: the lists
-    may have been rebuilt or the arrays replaced since the last chunk)."""
+    does not copy it for every contact; the table may have changed between runs); with
+    several, no row marked as held (TABLE), so that each column copies the row it
+    needs when it first needs it (contacts.stage_table); and every pair slot marked
+    dirty (its force and history may be non-zero: the lists may have been rebuilt or
+    the arrays replaced since the last chunk)."""
+    rows = law.work.reshape(law.work.shape[0], -1, STRIDE)
     if params.shape[0] == 1:
-        rows = law.work.reshape(law.work.shape[0], -1, STRIDE)
         rows[:, PARAMS:PARAMS + params.shape[2], :] = params[0, 0, :, None]
+    else:
+        rows[:, TABLE, :] = -1.0
     if law.dirty.size != pair_capacity:
         law = law._replace(dirty=np.ones(pair_capacity, np.uint8))
     law.dirty[:] = 1
