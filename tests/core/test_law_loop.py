@@ -224,11 +224,14 @@ def test_block_count_keeps_tiny_systems_on_one_block():
 
 def test_workspace_rows_start_on_cache_lines():
     """Every block's workspace and every row of it (STRIDE doubles) start on a 64-byte
-    boundary, so the law loop's 512-bit accesses never straddle two cache lines."""
-    from graindyn.engines.soft.law_loop import STRIDE
+    boundary, so the law loop's 512-bit accesses never straddle two cache lines.  A new
+    workspace holds zeros, and no pair-table row (TABLE: -1)."""
+    from graindyn.engines.soft.law_loop import STRIDE, TABLE
     for blocks in (1, 3, 7):
         work = workspace(0, blocks, 4).work
-        assert work.flags.c_contiguous and not work.any()
+        rows = work.reshape(blocks, -1, STRIDE)
+        assert work.flags.c_contiguous and (rows[:, TABLE] == -1.0).all()
+        assert not np.delete(rows, TABLE, axis=1).any()
         for b in range(blocks):
             assert work[b].ctypes.data % 64 == 0
         assert (STRIDE * work.itemsize) % 64 == 0
