@@ -186,6 +186,9 @@ def sweep_command(
         "machine).")] = None,
     dry_run: Annotated[bool, typer.Option(
         "--dry-run", help="Check the sweep and list its points, run nothing.")] = False,
+    summarize: Annotated[bool, typer.Option(
+        "--summarize", help="Write the summaries of the runs finished so far (with "
+        "--keep: those recorded there too), run nothing.")] = False,
 ):
     """Run a parameter sweep on Dask: every point (parameter, value, seed) in its own
     run directory, then summary.csv, summary.json and the protocol's tables and figures.
@@ -196,7 +199,8 @@ def sweep_command(
     2 a bad sweep file or config, 130 interrupted.
     """
     from .config import ConfigError
-    from .sweep import Sweep, SweepInterrupted, run as run_sweep, value_text
+    from .sweep import Sweep, SweepInterrupted, run as run_sweep, summarize as summarize_sweep
+    from .sweep import value_text
 
     if scheduler is not None and workers is not None:
         _fail("--workers sets the size of the local cluster: leave it out with --scheduler")
@@ -216,6 +220,9 @@ def sweep_command(
                 typer.echo(f"  {p.name:40s} {what}, seed {p.seed}"
                            + (" (the reference run)" if p.parameter and p.is_reference
                               else ""))
+            return
+        if summarize:
+            summarize_sweep(plan, target, keep=keep)
             return
         report = run_sweep(plan, target, scheduler=scheduler, workers=workers,
                            threads_per_worker=threads_per_worker, keep=keep)

@@ -598,6 +598,26 @@ def run(sweep: Sweep, out, scheduler=None, workers=None, threads_per_worker=1,
     if scheduler is None and client is None and threads > numba.config.NUMBA_NUM_THREADS:
         raise ConfigError(f"--threads-per-worker = {threads}: this machine offers at most "
                           f"{numba.config.NUMBA_NUM_THREADS}")
+    todo = _open(sweep, out, keep, say, "to run")
+    batched = [p for p in todo if p.config.run.backend == "gpu"] \
+        if scheduler is None and client is None else []
+    todo = [p for p in todo if p not in batched]
+    if batched:
+        _run_batched(batched, out, threads, say, keep)
+    if todo:
+        with _dask_client(scheduler, workers, threads, len(todo), client) as (c, where):
+            say(f"running on {where}")
+            _submit_all(c, todo, out, threads, say, keep)
+    report = finish(sweep, out, say)
+    if keep is not None:
+        keep_sweep_files(out, keep, report.paths)
+    return report
+
+
+def _open(sweep: Sweep, out, keep, say, what):
+    """Make the sweep directory ``out`` ready (the records of ``keep`` brought in,
+    prepare, the finished runs recorded in ``keep``), say how many runs are finished,
+    and return the others."""
     restored = restore_records(sweep, out, keep) if keep is not None else 0
     prepare(sweep, out)
     runs = sweep.runs
@@ -611,17 +631,17 @@ def run(sweep: Sweep, out, scheduler=None, workers=None, threads_per_worker=1,
     say(f"sweep {sweep.path.name}: {len(runs)} runs ({len(sweep.points)} points), "
         f"{len(runs) - len(todo)} finished earlier"
         + (f" ({restored} of them taken from {keep})" if restored else "")
-        + f", {len(todo)} to run, into {out}")
+        + f", {len(todo)} {what}, into {out}")
+    return todo
 
-    batched = [p for p in todo if p.config.run.backend == "gpu"] \
-        if scheduler is None and client is None else []
-    todo = [p for p in todo if p not in batched]
-    if batched:
-        _run_batched(batched, out, threads, say, keep)
-    if todo:
-        with _dask_client(scheduler, workers, threads, len(todo), client) as (c, where):
-            say(f"running on {where}")
-            _submit_all(c, todo, out, threads, say, keep)
+
+def summarize(sweep: Sweep, out, keep=None, echo=None):
+    """The summaries of the runs of ``sweep`` finished so far in ``out`` (and in the
+    keep folder ``keep``), written as a finished sweep writes them; nothing runs.
+    Returns the Report (the unfinished runs pending)."""
+    say = _printer() if echo is None else (lambda text, style=None: echo(text))
+    out = pathlib.Path(out).resolve()
+    _open(sweep, out, keep, say, "not finished (not run: --summarize)")
     report = finish(sweep, out, say)
     if keep is not None:
         keep_sweep_files(out, keep, report.paths)

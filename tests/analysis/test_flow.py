@@ -49,9 +49,11 @@ def test_the_sweep_summary_fits_the_flow_rates_of_holes_too_large_to_jam(tmp_pat
             rate = beverloo(r, A, K) * (1 + 0.02 * rng.standard_normal())
             # each run measures R with its own mean diameter: 1e-3 R apart
             measured = r * (1 + (seed - 1.5) * 1e-3)
-            points.append(SimpleNamespace(status="finished", results={
-                "R": float(measured), "avalanches": [], "mean_flow_rate_per_s": float(rate),
-                "d_ave_m": 0.005, "g_m_per_s2": 9.81}))
+            points.append(SimpleNamespace(
+                status="finished", name=f"hole={r}/seed-{seed}",
+                results={"R": float(measured), "avalanches": [],
+                         "mean_flow_rate_per_s": float(rate), "d_ave_m": 0.005,
+                         "g_m_per_s2": 9.81}))
     avalanches.summarize_sweep(tmp_path, points)
     data = json.loads((tmp_path / "silo_sweep.json").read_text())
     fit = data["fits"]["beverloo"]

@@ -262,8 +262,9 @@ def test_the_sweep_summary_pools_seeds_per_hole_size(tmp_path):
         for seed in (1, 2):
             rows = [{"first": True, "size": 500}] + [
                 {"first": False, "size": int(s)} for s in rng.exponential(scale, 300)]
-            points.append(SimpleNamespace(status="finished", results={
-                "R": R, "avalanches": rows, "mean_flow_rate_per_s": 80.0}))
+            points.append(SimpleNamespace(status="finished", name=f"hole={R}/seed-{seed}",
+                                          results={"R": R, "avalanches": rows,
+                                                   "mean_flow_rate_per_s": 80.0}))
     paths = avalanches.summarize_sweep(tmp_path, points)
     assert all(p.exists() for p in paths)
     data = json.loads((tmp_path / "silo_sweep.json").read_text())
@@ -276,3 +277,18 @@ def test_the_sweep_summary_pools_seeds_per_hole_size(tmp_path):
         assert abs(r["mean"] - expected) < 4 * r["mean_err"]
     assert "B" in data["fits"]["exp_square"] and "gamma" in data["fits"]["power_law"]
     assert "| 3.400 | 2 | 600 |" in (tmp_path / "silo_sweep.md").read_text()
+
+
+def test_the_sweep_summary_pools_the_seeds_of_a_hole_whatever_their_measured_R():
+    """Each seed measures R with its own mean diameter: two runs of one hole at
+    R = 3.5049 and 3.5051 are one row (their mean R), two holes are two rows."""
+    from graindyn.analysis import avalanches
+
+    def point(folder, seed, R):
+        return SimpleNamespace(status="finished", name=f"{folder}/seed-{seed}", results={
+            "R": R, "avalanches": [{"first": True, "size": 9}, {"first": False, "size": 4}],
+            "mean_flow_rate_per_s": 80.0})
+    rows = avalanches.hole_rows([point("reference", 1, 3.5049), point("reference", 2, 3.5051),
+                                 point("hole=0.017", 1, 3.4)])
+    assert [r["runs"] for r in rows] == [1, 2]
+    assert rows[1]["R"] == pytest.approx(3.505) and rows[1]["sizes"] == [4, 4]

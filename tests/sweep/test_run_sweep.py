@@ -4,6 +4,7 @@ and a sweep on a Dask scheduler given by address."""
 import contextlib
 import json
 import os
+import shutil
 import signal
 import time
 
@@ -227,6 +228,16 @@ def test_keep_folder_records_the_runs_and_a_new_directory_starts_from_it(schedul
     summaries = [json.loads((tmp_path / out / "summary.json").read_text())["groups"]
                  for out in ("out1", "out2")]
     assert summaries[0] == summaries[1]
+    # --summarize: the summaries of what is finished, nothing run
+    shutil.rmtree(keep / "reference" / "seed-2")
+    partial = runner.invoke(app, ["sweep", str(path), "--keep", str(keep), "--summarize",
+                                  "--out", str(tmp_path / "out4")])
+    assert partial.exit_code == 0, partial.output
+    assert "1 finished earlier (1 of them taken from" in partial.output
+    assert "running on" not in partial.output
+    assert not (tmp_path / "out4" / "reference" / "seed-2").exists()
+    summary = json.loads((tmp_path / "out4" / "summary.json").read_text())
+    assert summary["runs"] == {"finished": 1, "failed": 0, "pending": 1}
     other = write_sweep(tmp_path / "other", {"seeds": [1],
                                              "overrides": {"protocol.max_time": 0.02}})
     refused = runner.invoke(app, ["sweep", str(other), "--scheduler", scheduler, "--keep",

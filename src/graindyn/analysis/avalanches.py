@@ -96,24 +96,27 @@ def cumulative(sizes):
 
 
 def hole_rows(points):
-    """One row per hole size of a sweep's finished silo points (seeds pooled): R, the
-    statistics of the avalanches after each run's first, the mean flow rate and the
+    """One row per hole size of a sweep's finished silo points (seeds pooled: the runs
+    of one folder of the sweep directory, ``name`` = folder/seed-k), in order of R: R,
+    the statistics of the avalanches after each run's first, the mean flow rate and the
     sizes themselves.  Each run measures R = d_h / d_ave with its own mean diameter,
-    which differs from seed to seed by about 1e-3 R: runs are pooled by R to 0.01."""
-    grouped = {}
+    which differs from seed to seed by about 1e-3 R: a row's R is their mean."""
+    grouped, seen = {}, set()
     for p in points:
-        if p.status == "finished" and p.results:
-            grouped.setdefault(round(float(p.results["R"]), 2), []).append(p.results)
+        if p.status == "finished" and p.results and p.name not in seen:
+            seen.add(p.name)
+            grouped.setdefault(p.name.rsplit("/", 1)[0], []).append(p.results)
     rows = []
-    for R in sorted(grouped):
-        sizes = [a["size"] for r in grouped[R] for a in r["avalanches"] if not a["first"]]
-        rates = [r["mean_flow_rate_per_s"] for r in grouped[R] if "mean_flow_rate_per_s" in r]
-        rows.append({"R": R, "runs": len(grouped[R]), **statistics(sizes),
+    for runs in sorted(grouped.values(), key=lambda runs: np.mean([r["R"] for r in runs])):
+        sizes = [a["size"] for r in runs for a in r["avalanches"] if not a["first"]]
+        rates = [r["mean_flow_rate_per_s"] for r in runs if "mean_flow_rate_per_s" in r]
+        rows.append({"R": float(np.mean([r["R"] for r in runs])), "runs": len(runs),
+                     **statistics(sizes),
                      "flow_rate_per_s": float(np.mean(rates)) if rates else float("nan"),
                      "flow_rate_err": float(np.std(rates, ddof=1) / math.sqrt(len(rates)))
                      if len(rates) > 1 else float("nan"),
-                     "d_ave_m": grouped[R][0].get("d_ave_m"),
-                     "g_m_per_s2": grouped[R][0].get("g_m_per_s2"),
+                     "d_ave_m": runs[0].get("d_ave_m"),
+                     "g_m_per_s2": runs[0].get("g_m_per_s2"),
                      "sizes": sizes})
     return rows
 
