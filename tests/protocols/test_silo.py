@@ -3,6 +3,7 @@ and flows again with every disk accounted for; the jam detector and the avalanch
 bookkeeping on scripted sequences; Eq. 39; bad input refused before anything runs."""
 import copy
 import json
+import math
 import pathlib
 import tomllib
 from types import SimpleNamespace
@@ -276,7 +277,19 @@ def test_the_sweep_summary_pools_seeds_per_hole_size(tmp_path):
         expected = 1.0 / (np.exp(1.0 / scale) - 1.0)
         assert abs(r["mean"] - expected) < 4 * r["mean_err"]
     assert "B" in data["fits"]["exp_square"] and "gamma" in data["fits"]["power_law"]
-    assert "| 3.400 | 2 | 600 |" in (tmp_path / "silo_sweep.md").read_text()
+    for r in rows:
+        # each seed's own mean, their seed-to-seed error, the largest, the null error
+        seeds = [np.mean([a["size"] for a in p.results["avalanches"][1:]])
+                 for p in points if p.name.startswith(f"hole={r['R']}/")]
+        assert r["seed_means"] == pytest.approx(seeds)
+        assert r["seed_err"] == pytest.approx(abs(seeds[0] - seeds[1]) / 2)
+        assert r["largest"] == max(r["sizes"])
+        p_null = r["null_fraction"]
+        assert r["null_fraction_err"] == pytest.approx(math.sqrt(p_null * (1 - p_null) / 600))
+    md = (tmp_path / "silo_sweep.md").read_text()
+    assert "| 3.400 | 2 | 600 |" in md
+    # Pérez's power law (s0 = 8.5e5, R_c = 6.7, gamma = 8.2) gives 48 at R = 3.4
+    assert md.splitlines()[6].endswith("| 48 |")
 
 
 def test_the_sweep_summary_pools_the_seeds_of_a_hole_whatever_their_measured_R():

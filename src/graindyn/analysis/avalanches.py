@@ -10,6 +10,14 @@ and the mean flow rate.  Across R, <s>(R) fitted (weighted by the standard error
 with parameter uncertainties from the covariance and chi^2 per degree of freedom.
 Pérez reports s0 = 1.64 +- 0.08, B = 0.0716 +- 0.0006 and s0 = 8.5e5, R_c = 6.7 +- 0.4,
 gamma = 8.2 +- 1.1; the summary fits graindyn's own points and prints both beside them.
+He also gives <s> = 50.4 at R = 3.4 and 1385.3 at 4.5 (Fig. 6 caption), and a null
+fraction of 0.20 at R = 3.4 down to 0.019 at 4.4: the summary sets each hole's numbers
+beside his power law there and draws his points with graindyn's.
+
+The avalanches of one run are not independent of each other (null avalanches come in
+runs, Pérez Sec. 4; one packing's history runs through them all), so beside the
+standard error of the pooled sizes each row carries the seed-to-seed one: the spread of
+the runs' own means over the square root of their number.
 """
 import json
 import math
@@ -22,6 +30,10 @@ from .flow import beverloo, fit_beverloo
 
 PAPER = {"exp_square": {"s0": 1.64, "B": 0.0716},
          "power_law": {"s0": 8.5e5, "R_c": 6.7, "gamma": 8.2}}
+# Pérez's measured points (R: value): the Fig. 6 caption's <s> and the null fractions
+# of Sec. 4
+PAPER_MEAN_SIZE = {3.4: 50.4, 4.5: 1385.3}
+PAPER_NULL_FRACTION = {3.4: 0.20, 4.4: 0.019}
 
 
 def statistics(sizes):
@@ -95,23 +107,39 @@ def cumulative(sizes):
     return s, (positive.size - np.searchsorted(positive, s, side="left")) / positive.size
 
 
+def _run_sizes(results):
+    """The sizes of a run's avalanches after its first."""
+    return [a["size"] for a in results["avalanches"] if not a["first"]]
+
+
 def hole_rows(points):
     """One row per hole size of a sweep's finished silo points (seeds pooled: the runs
     of one folder of the sweep directory, ``name`` = folder/seed-k), in order of R: R,
-    the statistics of the avalanches after each run's first, the mean flow rate and the
-    sizes themselves.  Each run measures R = d_h / d_ave with its own mean diameter,
-    which differs from seed to seed by about 1e-3 R: a row's R is their mean."""
+    the statistics of the avalanches after each run's first, each run's mean size
+    (in order of the runs' names) with the seed-to-seed standard error of their mean
+    (``seed_err``, NaN below two runs), the largest avalanche, the standard error of
+    the null fraction (binomial), the mean flow rate and the sizes themselves.  Each
+    run measures R = d_h / d_ave with its own mean diameter, which differs from seed
+    to seed by about 1e-3 R: a row's R is their mean."""
     grouped, seen = {}, set()
-    for p in points:
+    for p in sorted(points, key=lambda p: p.name):
         if p.status == "finished" and p.results and p.name not in seen:
             seen.add(p.name)
             grouped.setdefault(p.name.rsplit("/", 1)[0], []).append(p.results)
     rows = []
     for runs in sorted(grouped.values(), key=lambda runs: np.mean([r["R"] for r in runs])):
-        sizes = [a["size"] for r in runs for a in r["avalanches"] if not a["first"]]
+        sizes = [s for r in runs for s in _run_sizes(r)]
         rates = [r["mean_flow_rate_per_s"] for r in runs if "mean_flow_rate_per_s" in r]
+        seed_means = [float(np.mean(_run_sizes(r))) for r in runs if _run_sizes(r)]
+        stats = statistics(sizes)
+        null = stats.get("null_fraction", float("nan"))
         rows.append({"R": float(np.mean([r["R"] for r in runs])), "runs": len(runs),
-                     **statistics(sizes),
+                     **stats, "seed_means": seed_means,
+                     "seed_err": float(np.std(seed_means, ddof=1) / math.sqrt(len(seed_means)))
+                     if len(seed_means) > 1 else float("nan"),
+                     "largest": int(max(sizes)) if sizes else 0,
+                     "null_fraction_err": math.sqrt(null * (1.0 - null) / len(sizes))
+                     if sizes else float("nan"),
                      "flow_rate_per_s": float(np.mean(rates)) if rates else float("nan"),
                      "flow_rate_err": float(np.std(rates, ddof=1) / math.sqrt(len(rates)))
                      if len(rates) > 1 else float("nan"),
@@ -146,15 +174,27 @@ def summarize_sweep(sweep_dir, points):
             {"error": "fewer than 3 hole sizes"},
             "power_law": fit_power_law(R, mean, err) if len(R) > 3 else
             {"error": "fewer than 4 hole sizes"}, "paper": PAPER, "beverloo": flow_fit(rows)}
+    paper = PAPER["power_law"]
     lines = ["# Avalanches of the 2D silo against the hole size (Pérez Sec. 4)", "",
-             "| R | runs | avalanches | <s> | null fraction | flow rate [disks/s] |",
-             "|---:|---:|---:|---:|---:|---:|"]
+             "<s>: mean size, null avalanches included, +- the standard error of the pooled "
+             "sizes, then +- the seed-to-seed one (the spread of the runs' means over "
+             "sqrt(runs)); null: count (fraction +- binomial error); Pérez: his power law "
+             "at R (his measured <s>: 50.4 at R = 3.4, 1385.3 at 4.5; null fraction 0.20 at "
+             "3.4, 0.019 at 4.4).", "",
+             "| R | runs | avalanches | <s> | seed means | null | largest s | "
+             "flow rate [disks/s] | Pérez <s> |",
+             "|---:|---:|---:|---:|---|---:|---:|---:|---:|"]
     for r in rows:
-        lines.append(f"| {r['R']:.3f} | {r['runs']} | {r['count']} | "
-                     f"{r.get('mean', float('nan')):.1f} +- {r.get('mean_err', float('nan')):.1f}"
-                     f" | {r.get('null_fraction', float('nan')):.3f} | "
-                     f"{r['flow_rate_per_s']:.1f} +- {r['flow_rate_err']:.1f} |")
-    lines += ["", "Fits of <s>(R), weighted by the standard errors:", ""]
+        mean = r.get("mean", float("nan"))
+        lines.append(
+            f"| {r['R']:.3f} | {r['runs']} | {r['count']} | {mean:.1f} +- "
+            f"{r.get('mean_err', float('nan')):.1f} +- {r['seed_err']:.1f} | "
+            + ", ".join(f"{m:.1f}" for m in r["seed_means"])
+            + f" | {r['null']} ({r.get('null_fraction', float('nan')):.3f} +- "
+            f"{r['null_fraction_err']:.3f}) | {r['largest']} | "
+            f"{r['flow_rate_per_s']:.1f} +- {r['flow_rate_err']:.1f} | "
+            f"{float(power_law(r['R'], paper['s0'], paper['R_c'], paper['gamma'])):.0f} |")
+    lines += ["", "Fits of <s>(R), weighted by the standard errors of the pooled sizes:", ""]
     for name in ("exp_square", "power_law"):
         fit = fits[name]
         paper = ", ".join(f"{k} = {v}" for k, v in PAPER[name].items())
@@ -182,10 +222,24 @@ def summarize_sweep(sweep_dir, points):
     return [md, js, _figure(sweep_dir / "figures" / "silo_sweep.png", rows, usable, fits)]
 
 
+def _paper_sizes(ax):
+    """Pérez's <s>(R) on ``ax`` (log scale): his two measured points and his two fits
+    over R = 3.4-4.5 as he prints them (the exp(B R^2) one misses his own points)."""
+    grid = np.linspace(3.4, 4.5, 100)
+    law, square = PAPER["power_law"], PAPER["exp_square"]
+    ax.plot(grid, power_law(grid, law["s0"], law["R_c"], law["gamma"]), "k:", lw=1,
+            label="Pérez: power law")
+    ax.plot(grid, exp_square(grid, square["s0"], square["B"]), color="0.6", ls="-.", lw=1,
+            label="Pérez: s0 exp(B R^2)")
+    ax.plot(list(PAPER_MEAN_SIZE), list(PAPER_MEAN_SIZE.values()), "k*", ms=9,
+            label="Pérez: measured")
+    ax.set_yscale("log")
+
+
 def _figure(path, rows, usable, fits):
     from ..figures import subplots
 
-    fig, ax = subplots(1, 3, figsize=(15.5, 4.2))
+    fig, ax = subplots(1, 4, figsize=(20, 4.2))
     for r in rows:
         s, w = cumulative(r["sizes"])
         if s.size and r.get("mean", 0) > 0:
@@ -198,24 +252,32 @@ def _figure(path, rows, usable, fits):
         grid = np.linspace(R.min(), R.max(), 100)
         if "error" not in fits["exp_square"]:
             f = fits["exp_square"]
-            ax[1].plot(grid, exp_square(grid, f["s0"], f["B"]), label="s0 exp(B R^2)")
+            ax[1].plot(grid, exp_square(grid, f["s0"], f["B"]), label="fit: s0 exp(B R^2)")
         if "error" not in fits["power_law"]:
             f = fits["power_law"]
             ax[1].plot(grid, power_law(grid, f["s0"], f["R_c"], f["gamma"]), "--",
-                       label="s0 / (R_c - R)^gamma")
-        ax[1].set_yscale("log")
+                       label="fit: s0 / (R_c - R)^gamma")
+    _paper_sizes(ax[1])
     ax[1].set(xlabel="R = d_h / d_ave", ylabel="<s>", title="Pérez Fig. 7")
+    counted = [r for r in rows if r.get("count", 0) > 0]
+    if counted:
+        ax[2].errorbar([r["R"] for r in counted], [r["null_fraction"] for r in counted],
+                       [r["null_fraction_err"] for r in counted], fmt="o", label="graindyn")
+    ax[2].plot(list(PAPER_NULL_FRACTION), list(PAPER_NULL_FRACTION.values()), "k*", ms=9,
+               label="Pérez")
+    ax[2].set(xlabel="R = d_h / d_ave", ylabel="fraction of null avalanches",
+              title="null avalanches")
     flowing = [r for r in rows if np.isfinite(r["flow_rate_per_s"])]
     if flowing:
         R = np.array([r["R"] for r in flowing])
-        ax[2].errorbar(R, [r["flow_rate_per_s"] for r in flowing],
+        ax[3].errorbar(R, [r["flow_rate_per_s"] for r in flowing],
                        [r["flow_rate_err"] for r in flowing], fmt="o", label="graindyn")
         fit = fits["beverloo"]
         if "error" not in fit:
             grid = np.linspace(max(fit["k"], 0.0), R.max(), 100)
-            ax[2].plot(grid, beverloo(grid, fit["A"], fit["k"]),
+            ax[3].plot(grid, beverloo(grid, fit["A"], fit["k"]),
                        label=f"A (R - k)^1.5, k = {fit['k']:.2f}")
-    ax[2].set(xlabel="R = d_h / d_ave", ylabel="flow rate [disks/s]",
+    ax[3].set(xlabel="R = d_h / d_ave", ylabel="flow rate [disks/s]",
               title="discharge rate (Beverloo)")
     for a in ax:
         if a.get_legend_handles_labels()[0]:
