@@ -251,6 +251,24 @@ def test_the_fits_of_the_mean_avalanche_recover_known_parameters(model):
     assert 0.2 < fit["chi2_per_dof"] < 3.0, fit
 
 
+def test_the_shift_of_perez_law_along_R_is_recovered_and_a_different_growth_is_told():
+    """<s> drawn from Pérez's power law at R - 0.25 (a hole acting a quarter diameter
+    narrower), 5 % noise, at R = 3.4..4.0: the one-parameter fit finds -0.25 within 3
+    standard errors with chi2/dof about 1; data growing twice as fast in log <s> do not
+    fit (chi2/dof far above 1)."""
+    from graindyn.analysis import avalanches
+
+    R = np.array([3.4, 3.5, 3.6, 3.8, 4.0])
+    mean = avalanches.paper_shifted(R, -0.25)
+    err = 0.05 * mean
+    noisy = mean + err * np.random.default_rng(11).standard_normal(R.size)
+    fit = avalanches.fit_paper_shift(R, noisy, err)
+    assert abs(fit["shift"] + 0.25) < 3 * fit["shift_err"] and fit["shift_err"] < 0.02, fit
+    assert 0.2 < fit["chi2_per_dof"] < 3.0, fit
+    steeper = mean[0] * (mean / mean[0]) ** 2
+    assert avalanches.fit_paper_shift(R, steeper, 0.05 * steeper)["chi2_per_dof"] > 20
+
+
 def test_the_sweep_summary_pools_seeds_per_hole_size(tmp_path):
     """Two seeds at each of 4 hole sizes, avalanche sizes drawn from exponentials of
     known mean: the summary pools the seeds per R (the first avalanche of each run left

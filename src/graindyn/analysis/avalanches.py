@@ -97,6 +97,20 @@ def fit_power_law(R, mean, err):
     return best or {"error": "no power law with R_c above the largest R fits"}
 
 
+def paper_shifted(R, shift):
+    """Pérez's power law at R + shift (his s0, R_c and gamma): his curve moved along R."""
+    law = PAPER["power_law"]
+    return power_law(np.asarray(R) + shift, law["s0"], law["R_c"], law["gamma"])
+
+
+def fit_paper_shift(R, mean, err):
+    """The shift along R that lays Pérez's power law on graindyn's <s>(R), the one
+    parameter fitted (weighted by err): <s>(R) = P(R + shift).  A chi^2 per degree of
+    freedom near 1 says the two grow alike and differ by an offset in the hole size
+    alone (a hole that acts wider or narrower than its width by shift d_ave)."""
+    return _fit(paper_shifted, R, mean, err, (0.0,), ("shift",))
+
+
 def cumulative(sizes):
     """Pérez Eq. 39: w(s) = (number of avalanches of size >= s) / (number of size >= 1)
     for s = 1..max, null avalanches left out; returns (s, w)."""
@@ -173,7 +187,9 @@ def summarize_sweep(sweep_dir, points):
     fits = {"exp_square": fit_exp_square(R, mean, err) if len(R) > 2 else
             {"error": "fewer than 3 hole sizes"},
             "power_law": fit_power_law(R, mean, err) if len(R) > 3 else
-            {"error": "fewer than 4 hole sizes"}, "paper": PAPER, "beverloo": flow_fit(rows)}
+            {"error": "fewer than 4 hole sizes"},
+            "paper_shift": fit_paper_shift(R, mean, err) if len(R) > 1 else
+            {"error": "fewer than 2 hole sizes"}, "paper": PAPER, "beverloo": flow_fit(rows)}
     paper = PAPER["power_law"]
     lines = ["# Avalanches of the 2D silo against the hole size (Pérez Sec. 4)", "",
              "<s>: mean size, null avalanches included, +- the standard error of the pooled "
@@ -205,6 +221,13 @@ def summarize_sweep(sweep_dir, points):
                                for k in PAPER[name])
             lines.append(f"- {name}: {values}, chi2/dof = {fit['chi2_per_dof']:.3g}; "
                          f"Pérez: {paper}")
+    fit = fits["paper_shift"]
+    if "error" in fit:
+        lines.append(f"- Pérez's power law moved along R: not fitted ({fit['error']})")
+    else:
+        lines.append(f"- Pérez's power law moved along R, <s> = P(R + shift): shift = "
+                     f"{fit['shift']:.3f} +- {fit['shift_err']:.2g}, chi2/dof = "
+                     f"{fit['chi2_per_dof']:.3g}")
     fit = fits["beverloo"]
     if "error" in fit:
         lines.append(f"- flow rate: Beverloo not fitted ({fit['error']})")
@@ -257,6 +280,11 @@ def _figure(path, rows, usable, fits):
             f = fits["power_law"]
             ax[1].plot(grid, power_law(grid, f["s0"], f["R_c"], f["gamma"]), "--",
                        label="fit: s0 / (R_c - R)^gamma")
+    if "error" not in fits["paper_shift"]:
+        shift = fits["paper_shift"]["shift"]
+        grid = np.linspace(3.4, 4.5, 100)
+        ax[1].plot(grid, paper_shifted(grid, shift), "k--", lw=1, alpha=0.5,
+                   label=f"Pérez's law at R {shift:+.2f}")
     _paper_sizes(ax[1])
     ax[1].set(xlabel="R = d_h / d_ave", ylabel="<s>", title="Pérez Fig. 7")
     counted = [r for r in rows if r.get("count", 0) > 0]
