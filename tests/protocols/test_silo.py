@@ -307,7 +307,22 @@ def test_the_sweep_summary_pools_seeds_per_hole_size(tmp_path):
     md = (tmp_path / "silo_sweep.md").read_text()
     assert "| 3.400 | 2 | 600 |" in md
     # Pérez's power law (s0 = 8.5e5, R_c = 6.7, gamma = 8.2) gives 48 at R = 3.4
-    assert md.splitlines()[6].endswith("| 48 |")
+    assert "| 48 | nan | nan |" in md.splitlines()[6]
+
+
+def test_the_cost_of_an_avalanche_is_read_from_each_run():
+    """Simulated discharge time per avalanche (the settling left out, the first
+    avalanche counted) and CPU seconds per simulated second of the last session."""
+    from graindyn.analysis import avalanches
+
+    results = {"settle": {"time_s": 1.0}, "time_s": 21.0, "dt_s": 1e-5,
+               "steps_this_session": 500_000, "cpu_time_this_session_s": 250.0,
+               "avalanches": [{"first": True, "size": 30}] + [{"first": False, "size": 3}] * 3}
+    per_avalanche, cpu = avalanches._run_cost(results)
+    assert per_avalanche == pytest.approx(5.0) and cpu == pytest.approx(50.0)
+    [row] = avalanches.hole_rows([SimpleNamespace(status="finished", name="h/seed-1",
+                                                  results={"R": 3.4, **results})])
+    assert row["cpu_s_per_avalanche"] == pytest.approx(250.0)
 
 
 def test_the_sweep_summary_pools_the_seeds_of_a_hole_whatever_their_measured_R():

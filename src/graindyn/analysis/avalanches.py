@@ -126,13 +126,36 @@ def _run_sizes(results):
     return [a["size"] for a in results["avalanches"] if not a["first"]]
 
 
+def _run_cost(results):
+    """(simulated seconds of discharge per avalanche, the first included; CPU seconds
+    per simulated second in the run's last session) of one run, NaN where the run
+    does not say (a run resumed from a checkpoint reports the CPU time of its last
+    session and the steps of that session alike, so their ratio stands)."""
+    settled = results.get("settle", {}).get("time_s", 0.0)
+    count = len(results["avalanches"])
+    per_avalanche = (results.get("time_s", float("nan")) - settled) / count if count \
+        else float("nan")
+    steps = results.get("steps_this_session", 0) * results.get("dt_s", 0.0)
+    cpu = results.get("cpu_time_this_session_s", float("nan")) / steps if steps > 0 \
+        else float("nan")
+    return per_avalanche, cpu
+
+
+def _finite_mean(values):
+    """The mean of the finite ``values``, NaN when there are none."""
+    finite = [v for v in values if math.isfinite(v)]
+    return sum(finite) / len(finite) if finite else float("nan")
+
+
 def hole_rows(points):
     """One row per hole size of a sweep's finished silo points (seeds pooled: the runs
     of one folder of the sweep directory, ``name`` = folder/seed-k), in order of R: R,
     the statistics of the avalanches after each run's first, each run's mean size
     (in order of the runs' names) with the seed-to-seed standard error of their mean
     (``seed_err``, NaN below two runs), the largest avalanche, the standard error of
-    the null fraction (binomial), the mean flow rate and the sizes themselves.  Each
+    the null fraction (binomial), the mean flow rate, the cost (simulated seconds per
+    avalanche, CPU seconds per simulated second and their product, means over the
+    runs: _run_cost) and the sizes themselves.  Each
     run measures R = d_h / d_ave with its own mean diameter, which differs from seed
     to seed by about 1e-3 R: a row's R is their mean."""
     grouped, seen = {}, set()
@@ -146,6 +169,7 @@ def hole_rows(points):
         rates = [r["mean_flow_rate_per_s"] for r in runs if "mean_flow_rate_per_s" in r]
         seed_means = [float(np.mean(_run_sizes(r))) for r in runs if _run_sizes(r)]
         stats = statistics(sizes)
+        per_avalanche, cpu = (_finite_mean(values) for values in zip(*map(_run_cost, runs)))
         null = stats.get("null_fraction", float("nan"))
         rows.append({"R": float(np.mean([r["R"] for r in runs])), "runs": len(runs),
                      **stats, "seed_means": seed_means,
@@ -154,6 +178,9 @@ def hole_rows(points):
                      "largest": int(max(sizes)) if sizes else 0,
                      "null_fraction_err": math.sqrt(null * (1.0 - null) / len(sizes))
                      if sizes else float("nan"),
+                     "simulated_s_per_avalanche": float(per_avalanche),
+                     "cpu_s_per_simulated_s": float(cpu),
+                     "cpu_s_per_avalanche": float(per_avalanche * cpu),
                      "flow_rate_per_s": float(np.mean(rates)) if rates else float("nan"),
                      "flow_rate_err": float(np.std(rates, ddof=1) / math.sqrt(len(rates)))
                      if len(rates) > 1 else float("nan"),
@@ -196,10 +223,12 @@ def summarize_sweep(sweep_dir, points):
              "sizes, then +- the seed-to-seed one (the spread of the runs' means over "
              "sqrt(runs)); null: count (fraction +- binomial error); Pérez: his power law "
              "at R (his measured <s>: 50.4 at R = 3.4, 1385.3 at 4.5; null fraction 0.20 at "
-             "3.4, 0.019 at 4.4).", "",
+             "3.4, 0.019 at 4.4).  Cost: simulated seconds of discharge per avalanche and "
+             "CPU seconds per avalanche (that times the CPU seconds per simulated second "
+             "of the runs, on their machine and its load).", "",
              "| R | runs | avalanches | <s> | seed means | null | largest s | "
-             "flow rate [disks/s] | Pérez <s> |",
-             "|---:|---:|---:|---:|---|---:|---:|---:|---:|"]
+             "flow rate [disks/s] | Pérez <s> | sim. s / avalanche | CPU s / avalanche |",
+             "|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
         mean = r.get("mean", float("nan"))
         lines.append(
@@ -209,7 +238,8 @@ def summarize_sweep(sweep_dir, points):
             + f" | {r['null']} ({r.get('null_fraction', float('nan')):.3f} +- "
             f"{r['null_fraction_err']:.3f}) | {r['largest']} | "
             f"{r['flow_rate_per_s']:.1f} +- {r['flow_rate_err']:.1f} | "
-            f"{float(power_law(r['R'], paper['s0'], paper['R_c'], paper['gamma'])):.0f} |")
+            f"{float(power_law(r['R'], paper['s0'], paper['R_c'], paper['gamma'])):.0f} | "
+            f"{r['simulated_s_per_avalanche']:.2f} | {r['cpu_s_per_avalanche']:.0f} |")
     lines += ["", "Fits of <s>(R), weighted by the standard errors of the pooled sizes:", ""]
     for name in ("exp_square", "power_law"):
         fit = fits[name]
