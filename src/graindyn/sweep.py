@@ -614,6 +614,17 @@ def run(sweep: Sweep, out, scheduler=None, workers=None, threads_per_worker=1,
     return report
 
 
+def run_order(todo, out, seeds):
+    """The order the unfinished runs ``todo`` are started in: those with a checkpoint
+    in ``out`` first (interrupted: they resume), then seed by seed (every point's first
+    seed before any point's second), each in the sweep file's order.  A long sweep
+    stopped part way then has every point with a seed or two rather than some points
+    with all of their seeds and others with none."""
+    rank = {seed: k for k, seed in enumerate(seeds)}
+    return [p for _, p in sorted(enumerate(todo), key=lambda item: (
+        not _has_checkpoint(out / item[1].name), rank.get(item[1].seed, 0), item[0]))]
+
+
 def _open(sweep: Sweep, out, keep, say, what):
     """Make the sweep directory ``out`` ready (the records of ``keep`` brought in,
     prepare, the finished runs recorded in ``keep``), say how many runs are finished,
@@ -627,7 +638,8 @@ def _open(sweep: Sweep, out, keep, say, what):
             if finished(out / p.name) and not finished(keep / p.name):
                 keep_record(out / p.name, keep / p.name)
         keep_sweep_files(out, keep)
-    todo = [p for p in runs if not finished(out / p.name)]
+    todo = run_order([p for p in runs if not finished(out / p.name)], out,
+                     list(dict.fromkeys(p.seed for p in sweep.points)))
     say(f"sweep {sweep.path.name}: {len(runs)} runs ({len(sweep.points)} points), "
         f"{len(runs) - len(todo)} finished earlier"
         + (f" ({restored} of them taken from {keep})" if restored else "")

@@ -47,6 +47,21 @@ def point(tmp_path):
     return sweep.points[0].config, tmp_path / "out" / "reference" / "seed-1"
 
 
+def test_runs_start_interrupted_first_then_seed_by_seed(tmp_path):
+    """An interrupted run (a checkpoint) goes first, then every point's first seed
+    before any point's second, in the sweep file's order of seeds and points."""
+    sweep = Sweep.load(write_sweep(tmp_path, {"seeds": [3, 1], "vary": [
+        {"parameter": "materials.sand.friction_sliding", "values": [0.2, 0.4]}]}))
+    out = tmp_path / "out"
+    interrupted = out / "friction_sliding=0.4" / "seed-1" / "checkpoints"
+    interrupted.mkdir(parents=True)
+    (interrupted / "checkpoint.h5").write_bytes(b"x")
+    order = sweeps.run_order(sweep.runs, out, [3, 1])
+    assert [p.name for p in order] == [
+        "friction_sliding=0.4/seed-1", "reference/seed-3", "friction_sliding=0.2/seed-3",
+        "friction_sliding=0.4/seed-3", "reference/seed-1", "friction_sliding=0.2/seed-1"]
+
+
 def test_task_skips_a_finished_point(calls, point):
     config, folder = point
     folder.mkdir(parents=True)
