@@ -173,12 +173,17 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
                 kt, params[prow(a, b, _XT)] * c, params[prow(a, b, _MU)],
                 params[prow(a, b, _MU_S)], threshold, fresh, cap, nx, ny, nz, vtx, vty, vtz,
                 history, k, ht, dt)
-            # rolling (Oquendo Eq. 7-9): not sliding and R'_ij |w_r| above the threshold
-            if sliding == 0.0 and r_roll * math.sqrt(wrx * wrx + wry * wry + wrz * wrz) \
-                    > threshold:
-                mx, my, mz, lost_r = rolling_constant_torque(
-                    params[prow(a, b, _MU_R)] * r_roll * cap, wrx, wry, wrz, dt)
-                dissipated_t += lost_r
+            # rolling (Oquendo Eq. 7-9): not sliding and R'_ij |w_r| above the threshold;
+            # the couple evaluated for every contact and kept by selects (SIMD lanes, as
+            # tangential_oquendo_force)
+            rolls = (sliding == 0.0) & (
+                r_roll * math.sqrt(wrx * wrx + wry * wry + wrz * wrz) > threshold)
+            cx, cy, cz, lost_r = rolling_constant_torque(
+                params[prow(a, b, _MU_R)] * r_roll * cap, wrx, wry, wrz, dt)
+            mx = cx if rolls else 0.0
+            my = cy if rolls else 0.0
+            mz = cz if rolls else 0.0
+            dissipated_t = dissipated_t + lost_r if rolls else dissipated_t
         dissipated_t += lost_t
     elif tangential == _OQUENDO_LITERAL:
         mu_r = params[prow(a, b, _MU_R)]

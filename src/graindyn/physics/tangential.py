@@ -101,8 +101,10 @@ def tangential_mindlin_stiffness(shear_eff, contact_radius):
 @scalar
 def tangential_spring_energy(kt, history, k, h):
     """Energy kt |zeta|^2/2 [J] stored in the tangential spring history[hrow(k, h:h+3)]."""
-    return 0.5 * kt * (history[hrow(k, h)] ** 2 + history[hrow(k, h + 1)] ** 2
-                       + history[hrow(k, h + 2)] ** 2)
+    zx = history[hrow(k, h)]
+    zy = history[hrow(k, h + 1)]
+    zz = history[hrow(k, h + 2)]
+    return 0.5 * kt * (zx * zx + zy * zy + zz * zz)
 
 
 @scalar
@@ -160,32 +162,36 @@ def tangential_oquendo_force(kt, eta_t, mu_k, mu_s, threshold, fresh, fn, nx, ny
     dissipated).  Once stuck, a contact stays stuck until that happens, even if the
     contact point moves faster than the threshold while the spring catches it.
     Returns f_t (3), the energy dissipated [J], and 1.0 when sliding (else 0.0).
+
+    Written without branches (both regimes evaluated, the outcome chosen by selects,
+    every history value stored), so that the CPU's law loop evaluates contacts in SIMD
+    lanes (engines/soft/law_loop.py); the numbers are those of the branching form:
+    the spring's update, made for a sliding contact too, is then replaced by zeros.
     """
     px = history[hrow(k, h + 4)]
     py = history[hrow(k, h + 5)]
     pz = history[hrow(k, h + 6)]
     speed = math.sqrt(vtx * vtx + vty * vty + vtz * vtz)
-    sliding = speed > threshold and (fresh or px * vtx + py * vty + pz * vtz > 0.0)
+    sliding = (speed > threshold) & (fresh | (px * vtx + py * vty + pz * vtz > 0.0))
     lost = tangential_spring_energy(kt, history, k, h)
-    if not sliding:
-        fx, fy, fz, spent = tangential_spring_force(kt, eta_t, mu_s, fn, 2, nx, ny, nz, vtx,
-                                                    vty, vtz, history, k, h, dt)
-        # static friction exceeded while the contact point moves: slide from this step
-        sliding = speed > 0.0 and fn > 0.0 and \
-            fx * fx + fy * fy + fz * fz >= (1.0 - 1e-12) * (mu_s * fn) ** 2
-        if not sliding:
-            history[hrow(k, h + 4)] = 0.0
-            history[hrow(k, h + 5)] = 0.0
-            history[hrow(k, h + 6)] = 0.0
-            return fx, fy, fz, spent, 0.0
-    history[hrow(k, h)] = 0.0
-    history[hrow(k, h + 1)] = 0.0
-    history[hrow(k, h + 2)] = 0.0
-    history[hrow(k, h + 4)] = vtx
-    history[hrow(k, h + 5)] = vty
-    history[hrow(k, h + 6)] = vtz
-    fx, fy, fz, work = tangential_coulomb_force(mu_k, fn, vtx, vty, vtz, dt)
-    return fx, fy, fz, work + lost, 1.0
+    sx, sy, sz, spent = tangential_spring_force(kt, eta_t, mu_s, fn, 2, nx, ny, nz, vtx, vty,
+                                                vtz, history, k, h, dt)
+    # static friction exceeded while the contact point moves: slide from this step
+    sliding = sliding | ((speed > 0.0) & (fn > 0.0)
+                         & (sx * sx + sy * sy + sz * sz
+                            >= (1.0 - 1e-12) * ((mu_s * fn) * (mu_s * fn))))
+    # (each store written out: a loop over the three would be an inner loop, and the
+    # vectorizer takes only innermost loops)
+    history[hrow(k, h)] = 0.0 if sliding else history[hrow(k, h)]
+    history[hrow(k, h + 1)] = 0.0 if sliding else history[hrow(k, h + 1)]
+    history[hrow(k, h + 2)] = 0.0 if sliding else history[hrow(k, h + 2)]
+    history[hrow(k, h + 4)] = vtx if sliding else 0.0
+    history[hrow(k, h + 5)] = vty if sliding else 0.0
+    history[hrow(k, h + 6)] = vtz if sliding else 0.0
+    cx, cy, cz, work = tangential_coulomb_force(mu_k, fn, vtx, vty, vtz, dt)
+    if sliding:
+        return cx, cy, cz, work + lost, 1.0
+    return sx, sy, sz, spent, 0.0
 
 
 @scalar
