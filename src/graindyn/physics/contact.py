@@ -192,10 +192,13 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
             params[prow(a, b, _SLIP)], params[prow(a, b, _BETA_I)],
             cap, r_roll, m_eff, nx, ny, nz, vtx, vty, vtz,
             wrx, wry, wrz, history, k, ht, dt)
-        if regime == 2.0:       # rolling: the couple of Eq. 8-9 (see the law)
-            mx, my, mz, lost_r = rolling_constant_torque(mu_r * r_roll * cap, wrx, wry, wrz,
-                                                         dt)
-            dissipated_t += lost_r
+        # rolling: the couple of Eq. 8-9 (see the law), kept by selects (SIMD lanes)
+        rolls = regime == 2.0
+        cx, cy, cz, lost_r = rolling_constant_torque(mu_r * r_roll * cap, wrx, wry, wrz, dt)
+        mx = cx if rolls else 0.0
+        my = cy if rolls else 0.0
+        mz = cz if rolls else 0.0
+        dissipated_t = dissipated_t + lost_r if rolls else dissipated_t
     else:
         ftx = fty = ftz = dissipated_t = 0.0
     rolling = model[3]

@@ -232,34 +232,32 @@ def tangential_oquendo_literal_force(mu_k, mu_s, tan_theta_r, threshold, inertia
     catching = history[hrow(k, h + 3)] == 2.0
     speed = math.sqrt(vtx * vtx + vty * vty + vtz * vtz)
     turned = px * vtx + py * vty + pz * vtz < 0.0
-    sliding = speed > threshold and not catching and not turned
-    catching = speed > threshold and not sliding
-    regime = 0.0
-    fx = fy = fz = 0.0
-    if not sliding:
-        # rolling velocity R'_ij w_r x n (Eq. 7)
-        rx = r_roll * (wry * nz - wrz * ny)
-        ry = r_roll * (wrz * nx - wrx * nz)
-        rz = r_roll * (wrx * ny - wry * nx)
-        rolling = math.sqrt(rx * rx + ry * ry + rz * rz)
-        if rolling > threshold and not catching:
-            s = -fn * tan_theta_r / ((1.0 + inertia_ratio) * rolling)
-            fx, fy, fz = s * rx, s * ry, s * rz
-            regime = 2.0
-        elif dt > 0.0:          # (an evaluation that advances no time has no pull to read)
-            c = -0.5 * m_eff * inertia_ratio / ((1.0 + inertia_ratio) * dt)
-            fx, fy, fz = c * vtx, c * vty, c * vtz
-            sliding = fn > 0.0 and speed > 0.0 and \
-                fx * fx + fy * fy + fz * fz >= (mu_s * fn) ** 2
-        if not sliding:
-            history[hrow(k, h)] = 0.0
-            history[hrow(k, h + 1)] = 0.0
-            history[hrow(k, h + 2)] = 0.0
-            history[hrow(k, h + 3)] = 2.0 if catching else 1.0
-            return fx, fy, fz, -(fx * vtx + fy * vty + fz * vtz) * dt, regime
-    history[hrow(k, h)] = vtx
-    history[hrow(k, h + 1)] = vty
-    history[hrow(k, h + 2)] = vtz
-    history[hrow(k, h + 3)] = 1.0
-    fx, fy, fz, work = tangential_coulomb_force(mu_k, fn, vtx, vty, vtz, dt)
-    return fx, fy, fz, work, 1.0
+    fast = speed > threshold
+    sliding = fast & (not catching) & (not turned)
+    catching = fast & (not sliding)
+    # the three regimes evaluated for every contact and chosen by selects, every history
+    # value stored (SIMD lanes, as tangential_oquendo_force); the numbers are those of
+    # the branching form
+    # rolling velocity R'_ij w_r x n (Eq. 7)
+    rx = r_roll * (wry * nz - wrz * ny)
+    ry = r_roll * (wrz * nx - wrx * nz)
+    rz = r_roll * (wrx * ny - wry * nx)
+    rolling = math.sqrt(rx * rx + ry * ry + rz * rz)
+    rolls = (not sliding) & (rolling > threshold) & (not catching)
+    # static: an evaluation that advances no time (dt = 0) has no pull to read
+    static = (not sliding) & (not rolls) & (dt > 0.0)
+    s = -fn * tan_theta_r / ((1.0 + inertia_ratio) * rolling)
+    c = -0.5 * m_eff * inertia_ratio / ((1.0 + inertia_ratio) * dt)
+    fx = s * rx if rolls else (c * vtx if static else 0.0)
+    fy = s * ry if rolls else (c * vty if static else 0.0)
+    fz = s * rz if rolls else (c * vtz if static else 0.0)
+    sliding = sliding | (static & (fn > 0.0) & (speed > 0.0)
+                         & (fx * fx + fy * fy + fz * fz >= (mu_s * fn) * (mu_s * fn)))
+    history[hrow(k, h)] = vtx if sliding else 0.0
+    history[hrow(k, h + 1)] = vty if sliding else 0.0
+    history[hrow(k, h + 2)] = vtz if sliding else 0.0
+    history[hrow(k, h + 3)] = 2.0 if catching & (not sliding) else 1.0
+    cx, cy, cz, work = tangential_coulomb_force(mu_k, fn, vtx, vty, vtz, dt)
+    if sliding:
+        return cx, cy, cz, work, 1.0
+    return fx, fy, fz, -(fx * vtx + fy * vty + fz * vtz) * dt, 2.0 if rolls else 0.0
