@@ -1,7 +1,7 @@
 """Where a step goes: each kernel of the compiled step timed alone on a benchmark bed.
 
-    python benchmarks/kernel_times.py STATE CYL SIZE E e DT SKIN THREADS [REPS]
-    python benchmarks/kernel_times.py RUN_DIR THREADS [REPS]
+    python benchmarks/kernel_times.py STATE CYL SIZE E e DT SKIN THREADS [REPS] [--cpu]
+    python benchmarks/kernel_times.py RUN_DIR THREADS [REPS] [--cpu]
 
 Builds the bed of benchmarks/lammps_bed.py (same arguments), or the engine of a run
 directory at its last checkpoint (any soft-engine run: its grains, walls, law and
@@ -11,8 +11,10 @@ kernels of a step (engines/soft/loop.py): the half-skin test,
 drift, pair forces, wall forces (and the sum onto walls), the gather-and-correct pass
 (alone, and with the next step's drift), and a whole step (run_chunk: its integrator
 may evaluate the forces more than once, as the optimized velocity Verlet does).
-Prints microseconds per call.  The kernels run on the
-settled bed, restored before each batch of calls.
+Prints microseconds per call: of wall time, or with ``--cpu`` of this process's CPU
+time (time.process_time: one thread on a machine other jobs share; with more threads
+it adds theirs up).  The kernels run on the settled bed, restored before each batch
+of calls.
 """
 import pathlib
 import sys
@@ -34,7 +36,13 @@ def from_run(folder):
     return restored(RunDirectory(folder), load(folder / "config.toml"))[1]
 
 
+CLOCK = [time.perf_counter]
+
+
 def main(argv):
+    if "--cpu" in argv:
+        argv = [a for a in argv if a != "--cpu"]
+        CLOCK[0] = time.process_time
     if len(argv) in (2, 3) and pathlib.Path(argv[0]).is_dir():
         threads = argv[1]
         reps = int(argv[2]) if len(argv) == 3 else 500
@@ -152,9 +160,10 @@ def _arrays(item):
 def _timed(fn, reps, args, arrays, saved):
     for a, copy in zip(arrays, saved):
         np.copyto(a, copy)
-    t0 = time.perf_counter()
+    clock = CLOCK[0]
+    t0 = clock()
     fn(reps, *args)
-    return (time.perf_counter() - t0) / reps
+    return (clock() - t0) / reps
 
 
 if __name__ == "__main__":
