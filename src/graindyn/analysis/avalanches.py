@@ -242,37 +242,33 @@ def summarize_sweep(sweep_dir, points):
             f"{r['simulated_s_per_avalanche']:.2f} | {r['cpu_s_per_avalanche']:.0f} |")
     lines += ["", "Fits of <s>(R), weighted by the standard errors of the pooled sizes:", ""]
     for name in ("exp_square", "power_law"):
-        fit = fits[name]
         paper = ", ".join(f"{k} = {v}" for k, v in PAPER[name].items())
-        if "error" in fit:
-            lines.append(f"- {name}: not fitted ({fit['error']}); Pérez: {paper}")
-        else:
-            values = ", ".join(f"{k} = {fit[k]:.4g} +- {fit[k + '_err']:.2g}"
-                               for k in PAPER[name])
-            lines.append(f"- {name}: {values}, chi2/dof = {fit['chi2_per_dof']:.3g}; "
-                         f"Pérez: {paper}")
-    fit = fits["paper_shift"]
-    if "error" in fit:
-        lines.append(f"- Pérez's power law moved along R: not fitted ({fit['error']})")
-    else:
-        lines.append(f"- Pérez's power law moved along R, <s> = P(R + shift): shift = "
-                     f"{fit['shift']:.3f} +- {fit['shift_err']:.2g}, chi2/dof = "
-                     f"{fit['chi2_per_dof']:.3g}")
-    fit = fits["beverloo"]
-    if "error" in fit:
-        lines.append(f"- flow rate: Beverloo not fitted ({fit['error']})")
-    else:
-        lines.append(f"- flow rate, Q = A (R - k)^(3/2) (Beverloo in 2D): A = {fit['A']:.4g} "
-                     f"+- {fit['A_err']:.2g} disks/s, k = {fit['k']:.3g} +- {fit['k_err']:.2g}"
-                     + (f", C = A sqrt(d/g) = {fit['C']:.3g} +- {fit['C_err']:.2g}"
-                        if "C" in fit else "")
-                     + (f", chi2/dof = {fit['chi2_per_dof']:.3g}" if "chi2_per_dof" in fit
-                        else ""))
+        lines.append(_fit_line(name, fits[name], lambda f, name=name: ", ".join(
+            f"{k} = {f[k]:.4g} +- {f[k + '_err']:.2g}" for k in PAPER[name])
+            + f", chi2/dof = {f['chi2_per_dof']:.3g}") + f"; Pérez: {paper}")
+    lines.append(_fit_line(
+        "Pérez's power law moved along R, <s> = P(R + shift)", fits["paper_shift"],
+        lambda f: f"shift = {f['shift']:.3f} +- {f['shift_err']:.2g}, "
+                  f"chi2/dof = {f['chi2_per_dof']:.3g}"))
+    lines.append(_fit_line(
+        "flow rate, Q = A (R - k)^(3/2) (Beverloo in 2D)", fits["beverloo"],
+        lambda f: f"A = {f['A']:.4g} +- {f['A_err']:.2g} disks/s, k = {f['k']:.3g} +- "
+                  f"{f['k_err']:.2g}"
+                  + (f", C = A sqrt(d/g) = {f['C']:.3g} +- {f['C_err']:.2g}" if "C" in f else "")
+                  + (f", chi2/dof = {f['chi2_per_dof']:.3g}" if "chi2_per_dof" in f else "")))
     md = sweep_dir / "silo_sweep.md"
     md.write_text("\n".join(lines) + "\n")
     js = sweep_dir / "silo_sweep.json"
     js.write_text(json.dumps({"rows": rows, "fits": fits}, indent=1, default=float))
     return [md, js, _figure(sweep_dir / "figures" / "silo_sweep.png", rows, usable, fits)]
+
+
+def _fit_line(label, fit, values):
+    """A line of the summary: the fit's values (``values(fit)``), or why it was not
+    fitted."""
+    if "error" in fit:
+        return f"- {label}: not fitted ({fit['error']})"
+    return f"- {label}: {values(fit)}"
 
 
 def _paper_sizes(ax):
