@@ -10,7 +10,9 @@ import pytest
 import graindyn as gd
 from graindyn.config import ConfigError, validate
 from graindyn.config import build
-from graindyn.core.walls import SEGMENT, Cylinder, Plane, Segment, Walls, wall_distance
+from graindyn.engines.event_driven.engine import EventDriven
+from graindyn.core.walls import (SEGMENT, Cylinder, Plane, Segment, Walls, wall_distance,
+                                 wall_reach)
 
 R = 1e-3
 RHO = 2650.0
@@ -133,6 +135,42 @@ def test_a_degenerate_segment_is_refused():
     assert Segment((0, 0, 0), (2, 0, 0), edge=(0, 0, 3)).area == 6.0
 
 
+def test_open_ends_touch_only_grains_over_the_wall():
+    """Open ends: over the face the distance of round ends; beyond an end or edge no
+    contact (inf), in the compiled function and its NumPy twin alike; wall_reach still
+    gives the round ends' distance, so the lists keep a grain that may come over it."""
+    walls = Walls([Segment((1.0, 1.0), (3.0, 1.0), ends="open"),
+                   Segment((1.0, 2.0, 3.0), (3.0, 2.0, 3.0), edge=(0.0, 1.0, 0.0),
+                           ends="open"),
+                   Segment((1.0, 1.0), (3.0, 1.0))])
+    over = [(0, (2.0, 1.5, 0.0), 0.5), (0, (1.0, 0.7, 0.0), 0.3), (1, (2.0, 2.5, 2.7), 0.3)]
+    beyond = [(0, (0.9, 1.2, 0.0)), (0, (3.3, 0.6, 0.0)), (1, (2.0, 3.3, 3.4)),
+              (1, (3.2, 3.2, 3.1))]
+    for k, point, distance in over:
+        d, n = _compiled(walls, k, point)
+        assert d == pytest.approx(distance, abs=1e-12)
+        assert abs(n[1 if k == 0 else 2]) == pytest.approx(1.0)
+    for k, point in beyond:
+        assert _compiled(walls, k, point)[0] == math.inf
+        twin_d, twin_n = walls.distances(np.array([point]), np.array([k]))
+        assert twin_d[0] == math.inf and twin_n[0] == pytest.approx([1.0, 0.0, 0.0])
+    rng = np.random.default_rng(7)
+    points = rng.uniform(0, 4, (300, 3))
+    points[:, 2] = rng.uniform(2.5, 3.5, 300)
+    for k in range(3):
+        twin_d, _ = walls.distances(points, np.full(len(points), k))
+        for p, td in zip(points, twin_d):
+            d, _ = _compiled(walls, k, p)
+            assert td == pytest.approx(d, rel=1e-12, abs=1e-15)
+            reach = wall_reach(walls.kind, walls.geometry, walls.offset, k, *p)
+            round_d = _compiled(walls, 2, p)[0] if k != 1 else None
+            if k == 0:
+                assert reach == round_d and (d == math.inf or d == round_d)
+    assert walls.geometry[:, 6] == pytest.approx([1.0, 1.0, 0.0])
+    with pytest.raises(ValueError, match="ends must be one of"):
+        Segment((0, 0), (1, 0), ends="square")
+
+
 # ---------------------------------------------------------------- dynamics (2D disks)
 def _disk(x, y, walls):
     st = gd.State.create([[x, y]], [R], RHO, dim=2)
@@ -196,6 +234,28 @@ def test_a_disk_at_the_lip_of_a_wide_orifice_is_deflected_and_falls_through():
     assert sim.walls.normal_force(0) == 0.0 and sim.walls.normal_force(1) == 0.0
 
 
+def test_a_disk_wider_than_an_orifice_of_open_ends_falls_through_it():
+    """The orifice of test_a_disk_wider_than_the_orifice_rests_on_both_lips with open
+    ends: the disk's centre is over the gap, so neither segment touches it, and it
+    falls freely (y(t) = y0 - g t^2 / 2) through the gap narrower than itself."""
+    h = 0.6 * R
+    walls = [Segment((-6 * R, 0.0), (-h, 0.0), name="left", ends="open"),
+             Segment((h, 0.0), (6 * R, 0.0), name="right", ends="open")]
+    sim = _disk(0.0, 2 * R, walls)
+    sim.run(time=0.02)
+    st = sim.state
+    assert st.positions[0, 1] == pytest.approx(2 * R - 0.5 * G * st.time**2, rel=1e-6)
+    assert st.positions[0, 0] == 0.0
+    assert sim.walls.normal_force(0) == 0.0 and sim.walls.normal_force(1) == 0.0
+
+
+def test_the_event_driven_engine_refuses_open_ends():
+    st = gd.State.create([[0.0, 2 * R]], [R], RHO, dim=2)
+    with pytest.raises(ValueError, match="open ends"):
+        EventDriven(st, [gd.Material(density=RHO)],
+                                 walls=[Segment((-R, 0.0), (R, 0.0), ends="open")])
+
+
 # ---------------------------------------------------------------- config
 def _config(**segment):
     seg = {"name": "lip", "start": [0.0, 4e-3], "end": [2e-3, 4e-3], **segment}
@@ -231,6 +291,8 @@ def test_a_config_with_segments_validates_and_builds_a_simulation():
     three["run"] = {"dim": 3}
     three["walls"]["container"] = {"kind": "box", "lo": [0, 0, 0], "hi": [6e-3] * 3}
     assert validate(three).walls.segments[0].edge == (0, 1e-3, 0)
+    opened = build.walls(validate(_config(ends="open")))[0]
+    assert [w.ends for w in opened if isinstance(w, Segment)] == ["open"]
 
 
 @pytest.mark.parametrize("segment, message", [
@@ -239,6 +301,7 @@ def test_a_config_with_segments_validates_and_builds_a_simulation():
     ({"edge": [0.0, 0.0, 1e-3]}, "a 2D segment lies in the x-y plane"),
     ({"material": "wood"}, "walls.segments.0.material = 'wood' is not a material"),
     ({"end": [math.nan, 4e-3]}, "finite"),
+    ({"ends": "square"}, "ends"),
 ])
 def test_a_bad_segment_is_refused_with_a_clear_message(segment, message):
     with pytest.raises(ConfigError, match=message):

@@ -198,6 +198,21 @@ def test_a_parallel_tap_ends_the_disks_with_the_walls():
         assert dy == pytest.approx(2 * np.pi * p.tap_frequency * p.tap_amplitude, rel=1e-12)
 
 
+def test_the_lip_setting_gives_the_floor_open_ends():
+    """lip "open": the two floor segments beside the hole have open ends (the gate and
+    the side walls are unchanged); "round", the default, keeps Pérez's rigid plate."""
+    from graindyn.core.walls import Segment
+    from graindyn.protocols.silo import FLOOR, GATE
+    for lip in ("round", "open"):
+        config = validate(small(lip=lip))
+        walls = build.protocol(config).walls([], lambda name: 0)
+        ends = {w.name: w.ends for w in walls if isinstance(w, Segment)}
+        assert ends == {FLOOR[0]: lip, FLOOR[1]: lip, GATE: "round"}
+    assert validate(small()).protocol.lip == "round"
+    with pytest.raises(ConfigError, match="protocol.lip"):
+        validate(small(lip="square"))
+
+
 def test_cumulative_is_eq_39():
     """w(s) = number of avalanches of size >= s over the number of non-null ones; sizes
     1 + floor(X), X exponential of scale 30, have P(size >= s) = exp(-(s - 1)/30)

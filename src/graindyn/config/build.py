@@ -53,7 +53,7 @@ def walls(config: Config):
         material = default if s.material is None else config.material_index(s.material)
         out.append(Segment(tuple(s.start), tuple(s.end), material,
                            Motion(**s.motion.model_dump()), s.name, s.area,
-                           (0.0, 0.0, 0.0) if s.edge is None else tuple(s.edge)))
+                           (0.0, 0.0, 0.0) if s.edge is None else tuple(s.edge), s.ends))
     return out, [Periodic(a, lo, hi) for a, lo, hi in w.periodic]
 
 

@@ -204,7 +204,7 @@ class SymmetrySection(Section):
 class SegmentSection(Section):
     """A finite wall (core.walls.Segment): in 2D the line segment from start to end in
     the x-y plane, in 3D the rectangle with corners start, end, end + edge, start + edge;
-    two-sided, its edges and ends round."""
+    two-sided, its edges and ends round unless ``ends = "open"``."""
 
     name: str = _f(..., "wall name (used in the outputs)")
     start: list[Float] = _f(..., "first end point [m] (3D: a corner of the rectangle); "
@@ -214,6 +214,9 @@ class SegmentSection(Section):
     edge: tuple[Float, Float, Float] | None = _f(
         None, "3D only: the rectangle's second edge [m], from start, perpendicular to "
         "end - start (required in 3D)")
+    ends: Literal["round", "open"] = _f(
+        "round", "round: grains touch its ends and edges too; open: it acts only on "
+        "grains whose centre is over it (core.walls.Segment)")
     material: str | None = _f(None, "wall material; default: walls.material")
     area: Float | None = _f(None, "area [m^2] (2D: length [m]) for the stress; default "
                             "the segment's own; > 0", gt=0)

@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from .._jit import inlined, kernel, parallel, prange, scalar
-from .walls import wall_distance
+from .walls import wall_reach
 
 
 @scalar
@@ -244,12 +244,12 @@ def list_owners(start, n, owner):
 
 @inlined
 def wall_row(i, positions, radii, skin, kind, geometry, offset, write, wall_ids, base):
-    """Count the walls within R_i + skin of grain i, writing them at wall_ids[base:]
-    when ``write``."""
+    """Count the walls within R_i + skin of grain i (walls.wall_reach), writing them at
+    wall_ids[base:] when ``write``."""
     k = 0
     for w in range(kind.size):
-        dist, nx, ny, nz = wall_distance(kind, geometry, offset, w, positions[i, 0],
-                                         positions[i, 1], positions[i, 2])
+        dist = wall_reach(kind, geometry, offset, w, positions[i, 0], positions[i, 1],
+                          positions[i, 2])
         if dist < radii[i] + skin:
             if write:
                 wall_ids[base + k] = w

@@ -45,6 +45,7 @@ import numpy as np
 from .._jit import scalar, kernel
 
 PLANE, CYLINDER, SEGMENT, DISK = 0, 1, 2, 3
+SEGMENT_ENDS = ("round", "open")       # Segment.ends
 GEOMETRY_WIDTH = 10        # columns of Walls.geometry (module docstring)
 FIXED, VELOCITY, SINUSOID, SERVO, PISTON = 0, 1, 2, 3, 4
 MOTION_WIDTH = 9           # columns of Walls.motion (module docstring)
@@ -206,6 +207,15 @@ class Segment:
     it holds grains only while their overlap stays below their radius: a grain driven
     through its middle comes out on the other side.
 
+    ends: "round" (the contact above) or "open": the wall then acts only on grains whose
+    centre lies over it (its projection on the segment's line, the rectangle's plane,
+    falls inside the segment or rectangle), at the distance to that projection; a grain
+    whose centre is beyond an end or edge does not touch it at all, however deep it
+    reaches over it.  A hole between two open-ended segments lets through any grain whose
+    centre is over the hole: a floor written as "y = 0 wherever there is floor", as a
+    code without segments would write it.  The event-driven engine, whose collision
+    times need the gap to change continuously, refuses it.
+
     area [m^2] (2D: length [m] per unit depth) turns the wall force into a stress:
     |end - start| (2D) or |end - start| |edge| (3D) when None.  The normal force
     (Walls.normal_force) is the magnitude of the force of the grains on it, as for the
@@ -219,8 +229,12 @@ class Segment:
     name: str = "segment"
     area: float | None = None
     edge: tuple = (0.0, 0.0, 0.0)
+    ends: str = "round"
 
     def __post_init__(self):
+        if self.ends not in SEGMENT_ENDS:
+            raise ValueError(f"segment {self.name!r}: ends must be one of {SEGMENT_ENDS}, "
+                             f"got {self.ends!r}")
         a, b = self._edges()
         if self.area is None:
             la = float(np.linalg.norm(a))
@@ -240,7 +254,8 @@ class Segment:
 
     def row(self):
         a, b = self._edges()
-        return SEGMENT, np.array([*_point(self.start, "segment start"), *a, 0.0, *b])
+        return SEGMENT, np.array([*_point(self.start, "segment start"), *a,
+                                  float(self.ends == "open"), *b])
 
 
 @dataclass
@@ -377,7 +392,8 @@ class Walls:
         segment = self.kind[ids] == SEGMENT
         if segment.any():
             dist[segment], normal[segment] = _segment_distances(
-                rel[segment], axis[segment], g[segment, 7:10], along[segment])
+                rel[segment], axis[segment], g[segment, 7:10], along[segment],
+                g[segment, 6] != 0)
         disk = self.kind[ids] == DISK
         if disk.any():
             dist[disk], normal[disk] = _disk_distances(along[disk], axis[disk], perp[disk],
@@ -481,14 +497,16 @@ class Walls:
         return None if a is None else self.normal_force(k) / a
 
 
-def _segment_distances(rel, a, b, along):
+def _segment_distances(rel, a, b, along, open_ends):
     """Distance [m] from segments (rectangles) of edges a, b (K, 3) to points at rel
     (K, 3) from their start, rel . a given, and the unit normals: wall_distance's segment
-    branch."""
-    s = np.clip(along / np.einsum("ka,ka->k", a, a), 0.0, 1.0)
+    branch (``open_ends`` (K,): inf and (1, 0, 0) for a point not over its wall)."""
+    s = along / np.einsum("ka,ka->k", a, a)
     bb = np.einsum("ka,ka->k", b, b)
-    t = np.where(bb > 0, np.clip(np.einsum("ka,ka->k", rel, b) / np.where(bb > 0, bb, 1.0),
-                                 0.0, 1.0), 0.0)
+    t = np.where(bb > 0, np.einsum("ka,ka->k", rel, b) / np.where(bb > 0, bb, 1.0), 0.0)
+    beyond = open_ends & ((s < 0) | (s > 1) | (t < 0) | (t > 1))
+    s = np.clip(s, 0.0, 1.0)
+    t = np.clip(t, 0.0, 1.0)
     r = rel - s[:, None] * a - t[:, None] * b
     rho = np.linalg.norm(r, axis=1)
     on = rho == 0
@@ -499,7 +517,10 @@ def _segment_distances(rel, a, b, along):
         size = np.linalg.norm(face, axis=1)
         r[on] = np.where((size > 0)[:, None], face / np.where(size > 0, size, 1.0)[:, None],
                          [1.0, 0.0, 0.0])
-    return rho, r / np.where(on, 1.0, rho)[:, None]
+    normal = r / np.where(on, 1.0, rho)[:, None]
+    rho[beyond] = np.inf
+    normal[beyond] = (1.0, 0.0, 0.0)
+    return rho, normal
 
 
 def _disk_distances(along, n, perp, rho, radius):
@@ -514,6 +535,62 @@ def _disk_distances(along, n, perp, rho, radius):
     dist = np.where(outside, np.hypot(along, np.maximum(over, 0.0)), np.abs(along))
     normal = np.where(outside[:, None], r / np.where(outside, dist, 1.0)[:, None], face)
     return dist, normal
+
+
+@scalar
+def segment_distance(geometry, w, px, py, pz, ax, ay, az, along, open_ends):
+    """wall_distance of segment (rectangle) w to a point at (px, py, pz) [m] from its
+    start, along = p . a (a = (ax, ay, az), its first edge): the distance to its closest
+    point, ends and edges included, or with ``open_ends`` inf for a point not over it
+    (Segment.ends)."""
+    s = along / (ax * ax + ay * ay + az * az)
+    bx = geometry[w, 7]
+    by = geometry[w, 8]
+    bz = geometry[w, 9]
+    bb = bx * bx + by * by + bz * bz
+    t = 0.0
+    if bb > 0.0:
+        t = (px * bx + py * by + pz * bz) / bb
+    if open_ends and (s < 0.0 or s > 1.0 or t < 0.0 or t > 1.0):
+        return math.inf, 1.0, 0.0, 0.0      # open ends: not over the wall, no contact
+    s = min(max(s, 0.0), 1.0)
+    t = min(max(t, 0.0), 1.0)
+    rx = px - s * ax - t * bx
+    ry = py - s * ay - t * by
+    rz = pz - s * az - t * bz
+    rho = math.sqrt(rx * rx + ry * ry + rz * rz)
+    if rho == 0.0:         # on the wall: its face normal a x b (segment: a turned)
+        nx = ay * bz - az * by
+        ny = az * bx - ax * bz
+        nz = ax * by - ay * bx
+        if bb == 0.0:
+            nx = -ay
+            ny = ax
+            nz = 0.0
+        size = math.sqrt(nx * nx + ny * ny + nz * nz)
+        if size == 0.0:
+            return 0.0, 1.0, 0.0, 0.0
+        return 0.0, nx / size, ny / size, nz / size
+    inverse = 1.0 / rho
+    return rho, rx * inverse, ry * inverse, rz * inverse
+
+
+@scalar
+def wall_reach(kind, geometry, offset, w, x, y, z):
+    """A lower bound [m] on wall_distance that changes continuously with the point: the
+    distance itself, except that an open-ended segment counts with round ends, so that
+    the neighbour lists (neighbors.wall_row) keep as a candidate a grain that may come
+    over it before they are rebuilt."""
+    if kind[w] != SEGMENT:
+        return wall_distance(kind, geometry, offset, w, x, y, z)[0]
+    px = x - geometry[w, 0] - offset[w, 0]
+    py = y - geometry[w, 1] - offset[w, 1]
+    pz = z - geometry[w, 2] - offset[w, 2]
+    ax = geometry[w, 3]
+    ay = geometry[w, 4]
+    az = geometry[w, 5]
+    return segment_distance(geometry, w, px, py, pz, ax, ay, az, px * ax + py * ay + pz * az,
+                            False)[0]
 
 
 @scalar
@@ -532,33 +609,9 @@ def wall_distance(kind, geometry, offset, w, x, y, z):
     along = px * ax + py * ay + pz * az
     if kind[w] == PLANE:
         return along, ax, ay, az
-    if kind[w] == SEGMENT:     # (ax, ay, az) is the edge a; closest start + s a + t b
-        s = min(max(along / (ax * ax + ay * ay + az * az), 0.0), 1.0)
-        bx = geometry[w, 7]
-        by = geometry[w, 8]
-        bz = geometry[w, 9]
-        bb = bx * bx + by * by + bz * bz
-        t = 0.0
-        if bb > 0.0:
-            t = min(max((px * bx + py * by + pz * bz) / bb, 0.0), 1.0)
-        rx = px - s * ax - t * bx
-        ry = py - s * ay - t * by
-        rz = pz - s * az - t * bz
-        rho = math.sqrt(rx * rx + ry * ry + rz * rz)
-        if rho == 0.0:         # on the wall: its face normal a x b (segment: a turned)
-            nx = ay * bz - az * by
-            ny = az * bx - ax * bz
-            nz = ax * by - ay * bx
-            if bb == 0.0:
-                nx = -ay
-                ny = ax
-                nz = 0.0
-            size = math.sqrt(nx * nx + ny * ny + nz * nz)
-            if size == 0.0:
-                return 0.0, 1.0, 0.0, 0.0
-            return 0.0, nx / size, ny / size, nz / size
-        inverse = 1.0 / rho
-        return rho, rx * inverse, ry * inverse, rz * inverse
+    if kind[w] == SEGMENT:     # (ax, ay, az) is the edge a
+        return segment_distance(geometry, w, px, py, pz, ax, ay, az, along,
+                                geometry[w, 6] != 0.0)
     rx = px - along * ax
     ry = py - along * ay
     rz = pz - along * az

@@ -74,6 +74,12 @@ class SiloSettings(SettleSettings):
                            "has left [-]; > 0", gt=0)
     reinject_height: Float = _f(5.5, "height of re-injection above the surface [d_ave]; "
                                 "> 0", gt=0)
+    lip: Literal["round", "open"] = _f(
+        "round", "how the floor meets a disk at the lips of the hole: round (the floor's "
+        "end points touch a disk whose centre is over the hole, as the sharp corner of "
+        "a rigid plate would), or open (the floor acts only on disks whose centre is "
+        "over it: the hole lets through every disk whose centre is over it; "
+        "core.walls.Segment ends)")
     jam_factor: Float = _f(8.0, "c: jammed when the largest speed < v0/c and no disk left "
                            "for c t0 [-]; > 1", gt=1)
     check_every: Float = _f(0.05, "interval of the exit and jam checks [t0]; (0, 1]", gt=0,
@@ -158,8 +164,8 @@ class Silo(Protocol):
         left, right = centre - 0.5 * hole, centre + 0.5 * hole
         kept = [w for w in container if w.name != v.bottom_wall]
         return kept + [
-            Segment((v.lo[0], y), (left, y), floor, name=FLOOR[0]),
-            Segment((right, y), (v.hi[0], y), floor, name=FLOOR[1]),
+            Segment((v.lo[0], y), (left, y), floor, name=FLOOR[0], ends=self.p.lip),
+            Segment((right, y), (v.hi[0], y), floor, name=FLOOR[1], ends=self.p.lip),
             Segment((left, y), (right, y), floor, name=GATE)]
 
     def results(self, engine, states):

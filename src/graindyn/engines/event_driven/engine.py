@@ -95,6 +95,13 @@ class EventDriven:
             raise ValueError(f"wall material ids must be in 0..{n_mat - 1}")
         for k in range(len(self.walls)):
             self._check_motion(k, self.walls.motion_kind[k])
+        for wall in self.walls.walls:
+            if getattr(wall, "ends", "round") != "round":
+                raise ValueError(
+                    f"wall {wall.name!r}: a segment with open ends touches a grain only "
+                    "while its centre is over it, a gap that jumps; the event-driven "
+                    "engine predicts collisions from a gap that changes continuously "
+                    "(use round ends, or the soft or contact dynamics engine)")
         if collapse not in COLLAPSE:
             raise ValueError(f"collapse must be one of {sorted(COLLAPSE)}, got {collapse!r}")
         if collapse == "speed" and not (collapse_speed is not None and collapse_speed > 0):
