@@ -2,10 +2,12 @@
 
     python benchmarks/kernel_times.py STATE CYL SIZE E e DT SKIN THREADS [REPS] [--cpu]
     python benchmarks/kernel_times.py RUN_DIR THREADS [REPS] [--cpu]
+    python benchmarks/kernel_times.py silo2d THREADS [REPS] [--cpu]
 
 Builds the bed of benchmarks/lammps_bed.py (same arguments), or the engine of a run
 directory at its last checkpoint (any soft-engine run: its grains, walls, law and
-integrator), runs 500 steps, then
+integrator), or the 2000-disk bed of benchmarks/lammps_silo_2d.py (``silo2d``, its
+linear law, in cell order as that benchmark runs it), runs 500 steps, then
 times, each in a compiled loop of REPS calls (default 500, best of 5 batches), the
 kernels of a step (engines/soft/loop.py): the half-skin test,
 drift, pair forces, wall forces (and the sum onto walls), the gather-and-correct pass
@@ -36,6 +38,17 @@ def from_run(folder):
     return restored(RunDirectory(folder), load(folder / "config.toml"))[1]
 
 
+def silo_bed():
+    """The settled 2000-disk bed of lammps_silo_2d.py with its physics, in cell order."""
+    import tempfile
+
+    import lammps_silo_2d as silo
+
+    work = pathlib.Path(tempfile.gettempdir()) / "graindyn_silo_bench"
+    work.mkdir(parents=True, exist_ok=True)
+    return silo.bed_simulation(silo.settled_bed(2000, work))
+
+
 CLOCK = [time.perf_counter]
 
 
@@ -43,7 +56,12 @@ def main(argv):
     if "--cpu" in argv:
         argv = [a for a in argv if a != "--cpu"]
         CLOCK[0] = time.process_time
-    if len(argv) in (2, 3) and pathlib.Path(argv[0]).is_dir():
+    if len(argv) in (2, 3) and argv[0] == "silo2d":
+        threads = argv[1]
+        reps = int(argv[2]) if len(argv) == 3 else 500
+        numba.set_num_threads(int(threads))
+        sim = silo_bed()
+    elif len(argv) in (2, 3) and pathlib.Path(argv[0]).is_dir():
         threads = argv[1]
         reps = int(argv[2]) if len(argv) == 3 else 500
         numba.set_num_threads(int(threads))

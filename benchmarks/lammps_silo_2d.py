@@ -74,16 +74,22 @@ def settled_bed(n, work):
     return np.loadtxt(path)
 
 
+def bed_simulation(bed):
+    """The Simulation of the bed ``bed`` (x y r rows), its disks in cell order."""
+    import graindyn as gd
+
+    state = gd.State.create(np.column_stack([bed[:, :2], np.zeros(len(bed))]), bed[:, 2],
+                            DENSITY, dim=2)
+    return simulation(state.reordered(
+        gd.cell_order(state.positions, 2 * state.radii.max() + SKIN)))
+
+
 def run_graindyn(bed, steps, threads):
     import numba
 
-    import graindyn as gd
-
     numba.set_num_threads(threads)
-    state = gd.State.create(np.column_stack([bed[:, :2], np.zeros(len(bed))]), bed[:, 2],
-                            DENSITY, dim=2)
-    state = state.reordered(gd.cell_order(state.positions, 2 * state.radii.max() + SKIN))
-    sim = simulation(state)
+    sim = bed_simulation(bed)
+    state = sim.state
     sim.run(steps=1000)
     t = time.perf_counter()
     sim.run(steps=steps)
