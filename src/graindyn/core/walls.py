@@ -576,30 +576,28 @@ def segment_distance(geometry, w, px, py, pz, ax, ay, az, along, open_ends):
 
 
 @scalar
+def wall_distance(kind, geometry, offset, w, x, y, z):
+    """Distance [m] from the surface of wall w to a point, and the unit normal pointing
+    from the wall to the point (plane: signed distance on the normal side; cylinder:
+    radius minus the distance to the axis; segment: distance to its closest point,
+    edges and ends included, >= 0 on either side, or inf for a point not over a segment
+    of open ends; disk: distance to its closest point, rim included, >= 0 on either
+    side, Disk)."""
+    return _distance(kind, geometry, offset, w, x, y, z, True)
+
+
+@scalar
 def wall_reach(kind, geometry, offset, w, x, y, z):
     """A lower bound [m] on wall_distance that changes continuously with the point: the
     distance itself, except that an open-ended segment counts with round ends, so that
     the neighbour lists (neighbors.wall_row) keep as a candidate a grain that may come
     over it before they are rebuilt."""
-    if kind[w] != SEGMENT:
-        return wall_distance(kind, geometry, offset, w, x, y, z)[0]
-    px = x - geometry[w, 0] - offset[w, 0]
-    py = y - geometry[w, 1] - offset[w, 1]
-    pz = z - geometry[w, 2] - offset[w, 2]
-    ax = geometry[w, 3]
-    ay = geometry[w, 4]
-    az = geometry[w, 5]
-    return segment_distance(geometry, w, px, py, pz, ax, ay, az, px * ax + py * ay + pz * az,
-                            False)[0]
+    return _distance(kind, geometry, offset, w, x, y, z, False)[0]
 
 
 @scalar
-def wall_distance(kind, geometry, offset, w, x, y, z):
-    """Distance [m] from the surface of wall w to a point, and the unit normal pointing
-    from the wall to the point (plane: signed distance on the normal side; cylinder:
-    radius minus the distance to the axis; segment: distance to its closest point,
-    edges and ends included, >= 0 on either side; disk: distance to its closest point,
-    rim included, >= 0 on either side, Disk)."""
+def _distance(kind, geometry, offset, w, x, y, z, open_ends):
+    """wall_distance, with the open ends of segments honoured or not (``open_ends``)."""
     px = x - geometry[w, 0] - offset[w, 0]
     py = y - geometry[w, 1] - offset[w, 1]
     pz = z - geometry[w, 2] - offset[w, 2]
@@ -611,7 +609,7 @@ def wall_distance(kind, geometry, offset, w, x, y, z):
         return along, ax, ay, az
     if kind[w] == SEGMENT:     # (ax, ay, az) is the edge a
         return segment_distance(geometry, w, px, py, pz, ax, ay, az, along,
-                                geometry[w, 6] != 0.0)
+                                open_ends and geometry[w, 6] != 0.0)
     rx = px - along * ax
     ry = py - along * ay
     rz = pz - along * az
