@@ -94,7 +94,7 @@ def main(argv):
                 images):
         for _ in range(reps):
             before_force(counters[loop.INTEGRATOR], np.int64(0), clock[loop.DT],
-                         counters[loop.HISTORY_STEPS] > 0, g.positions, g.velocities,
+                         counters[loop.HISTORY_STEPS] > 0, counters[loop.DIM], g.positions, g.velocities,
                          g.angular_velocities, g.orientations, g.accelerations,
                          g.angular_accelerations, g.fixed, history)
 

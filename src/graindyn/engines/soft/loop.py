@@ -290,7 +290,7 @@ def run_chunk(model, params, law, grains, pairs, walls, periodic, images, clock,
         for stage in range(last + 1):
             if not drifted:
                 before_force(integrator, stage, dt, counters[HISTORY_STEPS] > 0,
-                             grains.positions, grains.velocities, grains.angular_velocities,
+                             counters[DIM], grains.positions, grains.velocities, grains.angular_velocities,
                              grains.orientations, grains.accelerations,
                              grains.angular_accelerations, grains.fixed, integrator_history)
             drifted = False

@@ -75,12 +75,12 @@ def kernels():
     verdict = device_function(loop.verdict)
 
     @cuda.jit
-    def drift_kernel(row_first, row_system, mask, integrator, stage, clock, started,
+    def drift_kernel(row_first, row_system, mask, integrator, stage, clock, started, dim,
                      positions, velocities, angular_velocities, orientations, accelerations,
                      angular_accelerations, fixed, history):
         k, i, ok = row_grain(row_first, row_system, mask)
         if ok:
-            drift(i, integrator, stage, clock[k, loop.DT], started[k] != 0, positions,
+            drift(i, integrator, stage, clock[k, loop.DT], started[k] != 0, dim, positions,
                   velocities, angular_velocities, orientations, accelerations,
                   angular_accelerations, fixed, history)
 
@@ -389,7 +389,8 @@ class DeviceEnsemble:
         mask, clock, w = self.mask, self.dev["loop"].clock, self.dev["walls"]
         for stage in range(stages):
             g = self.dev["grains"]
-            self._rows("drift", mask, integrator, stage, clock, self.started, g.positions,
+            self._rows("drift", mask, integrator, stage, clock, self.started,
+                       int(self.sims[0].counters[loop.DIM]), g.positions,
                        g.velocities, g.angular_velocities, g.orientations, g.accelerations,
                        g.angular_accelerations, g.fixed, self.dev["loop"].integrator_history)
             if stage == 0:
