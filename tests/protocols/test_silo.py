@@ -320,7 +320,7 @@ def test_the_sweep_summary_pools_seeds_per_hole_size(tmp_path):
         p_null = r["null_fraction"]
         assert r["null_fraction_err"] == pytest.approx(math.sqrt(p_null * (1 - p_null) / 600))
     md = (tmp_path / "silo_sweep.md").read_text()
-    assert "| 3.400 | 2 | 600 |" in md
+    assert "| hole=3.4 | 3.400 | 2 | 600 |" in md
     # Pérez's power law (s0 = 8.5e5, R_c = 6.7, gamma = 8.2) gives 48 at R = 3.4
     assert "| 48 | nan | nan |" in md.splitlines()[6]
 
@@ -352,4 +352,25 @@ def test_the_sweep_summary_pools_the_seeds_of_a_hole_whatever_their_measured_R()
     rows = avalanches.hole_rows([point("reference", 1, 3.5049), point("reference", 2, 3.5051),
                                  point("hole=0.017", 1, 3.4)])
     assert [r["runs"] for r in rows] == [1, 2]
+    assert [r["point"] for r in rows] == ["hole=0.017", "reference"]
     assert rows[1]["R"] == pytest.approx(3.505) and rows[1]["sizes"] == [4, 4]
+
+
+def test_points_that_share_a_hole_size_are_rows_of_their_own_and_are_not_fitted(tmp_path):
+    """A sweep of another parameter at one hole (examples/silo_lip.toml): one row per
+    point, each named, and no curve across R."""
+    from graindyn.analysis import avalanches
+
+    points = [SimpleNamespace(status="finished", name=f"{folder}/seed-{seed}", results={
+        "R": 3.4, "avalanches": [{"first": True, "size": 9}] + [
+            {"first": False, "size": s} for s in (scale, 2 * scale, 0)],
+        "mean_flow_rate_per_s": 80.0})
+        for folder, scale in (("reference", 10), ("lip=open", 30)) for seed in (1, 2)]
+    avalanches.summarize_sweep(tmp_path, points)
+    data = json.loads((tmp_path / "silo_sweep.json").read_text())
+    assert sorted(r["point"] for r in data["rows"]) == ["lip=open", "reference"]
+    assert {r["point"]: r["mean"] for r in data["rows"]} == {"reference": 10, "lip=open": 30}
+    for name in ("exp_square", "power_law", "paper_shift"):
+        assert "share a hole size" in data["fits"][name]["error"]
+    md = (tmp_path / "silo_sweep.md").read_text()
+    assert "| lip=open | 3.400 | 2 | 6 |" in md and "| reference | 3.400 | 2 | 6 |" in md

@@ -148,8 +148,9 @@ def _finite_mean(values):
 
 
 def hole_rows(points):
-    """One row per hole size of a sweep's finished silo points (seeds pooled: the runs
-    of one folder of the sweep directory, ``name`` = folder/seed-k), in order of R: R,
+    """One row per point of a sweep's finished silo points (seeds pooled: the runs of
+    one folder of the sweep directory, ``name`` = folder/seed-k), in order of R: the
+    folder (``point``), R,
     the statistics of the avalanches after each run's first, each run's mean size
     (in order of the runs' names) with the seed-to-seed standard error of their mean
     (``seed_err``, NaN below two runs), the largest avalanche, the standard error of
@@ -164,14 +165,16 @@ def hole_rows(points):
             seen.add(p.name)
             grouped.setdefault(p.name.rsplit("/", 1)[0], []).append(p.results)
     rows = []
-    for runs in sorted(grouped.values(), key=lambda runs: np.mean([r["R"] for r in runs])):
+    for point, runs in sorted(grouped.items(),
+                              key=lambda item: np.mean([r["R"] for r in item[1]])):
         sizes = [s for r in runs for s in _run_sizes(r)]
         rates = [r["mean_flow_rate_per_s"] for r in runs if "mean_flow_rate_per_s" in r]
         seed_means = [float(np.mean(_run_sizes(r))) for r in runs if _run_sizes(r)]
         stats = statistics(sizes)
         per_avalanche, cpu = (_finite_mean(values) for values in zip(*map(_run_cost, runs)))
         null = stats.get("null_fraction", float("nan"))
-        rows.append({"R": float(np.mean([r["R"] for r in runs])), "runs": len(runs),
+        rows.append({"point": point, "R": float(np.mean([r["R"] for r in runs])),
+                     "runs": len(runs),
                      **stats, "seed_means": seed_means,
                      "seed_err": float(np.std(seed_means, ddof=1) / math.sqrt(len(seed_means)))
                      if len(seed_means) > 1 else float("nan"),
@@ -211,12 +214,18 @@ def summarize_sweep(sweep_dir, points):
     R = [r["R"] for r in usable]
     mean = [r["mean"] for r in usable]
     err = [r["mean_err"] for r in usable]
-    fits = {"exp_square": fit_exp_square(R, mean, err) if len(R) > 2 else
-            {"error": "fewer than 3 hole sizes"},
-            "power_law": fit_power_law(R, mean, err) if len(R) > 3 else
-            {"error": "fewer than 4 hole sizes"},
-            "paper_shift": fit_paper_shift(R, mean, err) if len(R) > 1 else
-            {"error": "fewer than 2 hole sizes"}, "paper": PAPER, "beverloo": flow_fit(rows)}
+    holes = len({round(x, 2) for x in R})
+    if holes < len(R):      # another parameter varies at one hole: no curve across R
+        shared = {"error": "points share a hole size (another parameter varies)"}
+        fits = {"exp_square": shared, "power_law": shared, "paper_shift": shared}
+    else:
+        fits = {"exp_square": fit_exp_square(R, mean, err) if holes > 2 else
+                {"error": "fewer than 3 hole sizes"},
+                "power_law": fit_power_law(R, mean, err) if holes > 3 else
+                {"error": "fewer than 4 hole sizes"},
+                "paper_shift": fit_paper_shift(R, mean, err) if holes > 1 else
+                {"error": "fewer than 2 hole sizes"}}
+    fits.update(paper=PAPER, beverloo=flow_fit(rows))
     paper = PAPER["power_law"]
     lines = ["# Avalanches of the 2D silo against the hole size (Pérez Sec. 4)", "",
              "<s>: mean size, null avalanches included, +- the standard error of the pooled "
@@ -226,13 +235,13 @@ def summarize_sweep(sweep_dir, points):
              "3.4, 0.019 at 4.4).  Cost: simulated seconds of discharge per avalanche and "
              "CPU seconds per avalanche (that times the CPU seconds per simulated second "
              "of the runs, on their machine and its load).", "",
-             "| R | runs | avalanches | <s> | seed means | null | largest s | "
+             "| point | R | runs | avalanches | <s> | seed means | null | largest s | "
              "flow rate [disks/s] | Pérez <s> | sim. s / avalanche | CPU s / avalanche |",
-             "|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|"]
+             "|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
         mean = r.get("mean", float("nan"))
         lines.append(
-            f"| {r['R']:.3f} | {r['runs']} | {r['count']} | {mean:.1f} +- "
+            f"| {r['point']} | {r['R']:.3f} | {r['runs']} | {r['count']} | {mean:.1f} +- "
             f"{r.get('mean_err', float('nan')):.1f} +- {r['seed_err']:.1f} | "
             + ", ".join(f"{m:.1f}" for m in r["seed_means"])
             + f" | {r['null']} ({r.get('null_fraction', float('nan')):.3f} +- "
