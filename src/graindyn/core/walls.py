@@ -7,8 +7,8 @@ physics.contact.contact_force as grain pairs, with R_j = infinity.
 Kernel layout (``Walls.arrays``): kind (W,) 0 plane / 1 cylinder inside / 2 segment /
 3 disk; geometry (W, 10) (GEOMETRY_WIDTH): plane: origin (3), unit normal (3), 0, 0 0 0;
 cylinder: a point of the axis (3), unit axis (3), radius [m], 0 0 0; segment: start
-(corner) (3), first edge end - start (3) [m], 0, second edge (3) [m] (0 0 0 for a line
-segment); disk: centre (3), unit normal (3), radius [m], 0 0 0; motion_kind (W,)
+(corner) (3), first edge end - start (3) [m], 1 for open ends else 0, second edge (3)
+[m] (0 0 0 for a line segment); disk: centre (3), unit normal (3), radius [m], 0 0 0; motion_kind (W,)
 0 fixed / 1 constant velocity / 2 sinusoid / 3 servo / 4 piston; motion (W, 9)
 (MOTION_WIDTH) = unit direction (3), then speed [m/s], amplitude [m], frequency [Hz],
 phase [rad] (velocity, sinusoid) or target force [N], gain [m/(N s)], largest speed
