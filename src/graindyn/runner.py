@@ -25,7 +25,7 @@ from .engines import ENGINES
 from .output import checkpoint
 from .output.progress import progress_bar
 from .output.rundir import RunDirectory, Series
-from .output.writers import NetworkWriter, SeriesWriter, VtkWriter
+from .output.writers import NetworkWriter, SeriesWriter, VtkWriter, series_row
 
 
 class RunInterrupted(RuntimeError):
@@ -84,7 +84,7 @@ class _Driver:
         protocol.folder = rundir.path
         self.state = progress_state
         self.writers = [SeriesWriter(rundir.path / "series.csv",
-                                     Periodic(time=output.series_every)),
+                                     Periodic(time=output.series_every), self.series_row),
                         VtkWriter(rundir.vtk, None if output.vtk_every is None
                                   else Periodic(time=output.vtk_every), output.vtk_contacts)]
         if output.figures:
@@ -100,6 +100,10 @@ class _Driver:
         self.show = show
         self.signals = None
         self.bar = None
+
+    def series_row(self, engine):
+        """A row of series.csv: the standard columns, then the protocol's own."""
+        return series_row(engine) | self.protocol.series_columns(engine)
 
     def resume(self, meta, t):
         """Hand each writer its state from the checkpoint ``meta`` at time ``t`` [s]."""

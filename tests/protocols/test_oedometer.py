@@ -16,6 +16,7 @@ import graindyn as gd
 from graindyn.config import ConfigError, validate
 from graindyn.core.walls import Motion, Plane
 from graindyn.output import checkpoint
+from graindyn.output.rundir import Series
 from graindyn.protocols.oedometer import MIN_AT_REST, fit_ladder, ladder
 from graindyn.runner import execute
 
@@ -218,6 +219,13 @@ def test_small_oedometer_ladder(oedometer):
         assert r["trace_Pa"] == pytest.approx(r["sigma_top_Pa"] + 2 * r["sigma_lateral_Pa"])
     assert set(results["bauer"]) == {"vertical", "trace"}
     assert (out / "ladder.csv").read_text().count("\n") == 6
+    # the series follows the void ratio between levels: its last row before each
+    # level's end (1 ms apart at most), the sample at rest, reads what the level recorded
+    series = Series(out / "series.csv").read()
+    last = np.searchsorted(series["time [s]"], [r["time_s"] for r in rows], "right") - 1
+    assert series["void_ratio [-]"][last] == pytest.approx(e, rel=1e-4)
+    assert series["piston_height [m]"][last] == pytest.approx([r["height_m"] for r in rows],
+                                                              rel=1e-4)
     assert (out / "figures" / "oedometer.png").stat().st_size > 10_000
     assert "level 4 (unloading)" in (out / "run.log").read_text()
 

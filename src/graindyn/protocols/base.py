@@ -239,6 +239,12 @@ class Protocol:
         the walls' material)."""
         return list(container)
 
+    def series_columns(self, engine):
+        """Columns of the protocol's own for every row of the run's time series
+        (series.csv, after output.writers.series_row's): {name with its unit: value},
+        the same names at every row."""
+        return {}
+
     def results(self, engine, states):
         """The run's results from the phases' states (dict of name -> state)."""
         return {name: state.get("report", {}) for name, state in states.items()}

@@ -180,6 +180,14 @@ class Oedometer(Protocol):
             "trace: 3 p_s = sigma_v + 2 sigma_lateral (Bauer 1996; the abstract's 3p)")
         return out
 
+    def series_columns(self, engine):
+        """The piston's height above the bottom [m] and the void ratio below it (as each
+        level records them): how the sample creeps under a held load.  Before the load
+        phase the piston waits at the top of the container."""
+        height = piston_height(engine.walls, self.vessel)
+        return {"piston_height [m]": height,
+                "void_ratio [-]": void_ratio(engine.state, self.vessel, height)}
+
     def tables(self, rundir, results):
         """ladder.csv: one row per level."""
         return [write_rows(rundir.path / "ladder.csv", results["ladder"])]
@@ -211,8 +219,14 @@ class Oedometer(Protocol):
                 ax.set_xscale("log")
         axes[0].legend(fontsize=7)
         t = series["time [s]"]
-        axes[2].plot(t, series[f"force_{PISTON} [N]"] / self.vessel.cross_section / 1e6)
+        stress = series[f"force_{PISTON} [N]"] / self.vessel.cross_section
+        axes[2].plot(t, stress / 1e6)
         axes[2].set(xlabel="t [s]", ylabel="piston stress [MPa]")
+        if "void_ratio [-]" in series:       # runs of older versions lack it
+            loaded = stress >= 0.5 * self.p.p0      # the piston down on the sample
+            creep = axes[2].twinx()
+            creep.plot(t[loaded], series["void_ratio [-]"][loaded], color="C3", lw=0.8)
+            creep.set_ylabel("void ratio e [-]", color="C3")
         fig.suptitle(f"{self.title}: oedometric test, "
                      f"{results['deposition'].get('grains', '?')} grains")
         return [save_figure(fig, rundir, "oedometer.png")]
@@ -386,12 +400,9 @@ class Load(ProtocolPhase):
     def measure(self, sim):
         """The oedometer's state: stresses [Pa], K0, void ratio, friction on the side
         walls [N], coordination and kinetic energy [J] (see the module docstring)."""
-        walls, s = sim.walls, sim.state
+        walls = sim.walls
         piston, bottom = walls.index(PISTON), walls.index(self.vessel.bottom_wall)
-        z_top = float(walls.geometry[piston, 2] + walls.offset[piston, 2])
-        z_bottom = float(walls.geometry[bottom, 2] + walls.offset[bottom, 2])
-        height = z_top - z_bottom
-        solid = float(np.sum(4.0 / 3.0 * np.pi * s.radii**3))
+        height = piston_height(walls, self.vessel)
         sides = [walls.index(name) for name in self.vessel.side_walls]
         contacts = sim.wall_contacts()
         lateral = float(np.sum(contacts.normal_force[np.isin(contacts.wall, sides)])) \
@@ -403,13 +414,27 @@ class Load(ProtocolPhase):
         e = energy_budget(sim)
         return {"sigma_top_Pa": top, "sigma_bottom_Pa": bot, "sigma_lateral_Pa": lateral,
                 "K0": lateral / vertical if vertical > 0 else float("nan"),
-                "trace_Pa": top + 2.0 * lateral, "void_ratio": (self.vessel.cross_section * height
-                                                               - solid) / solid,
+                "trace_Pa": top + 2.0 * lateral,
+                "void_ratio": void_ratio(sim.state, self.vessel, height),
                 "height_m": height, "side_friction_N": self._side_friction(sim),
                 "weight_N": weight, "coordination": coordination_number(sim),
                 "kinetic_J": e["kinetic"] + e["rotational"], "elastic_J": e["elastic"],
                 "time_s": sim.time}
 
+
+
+def piston_height(walls, vessel):
+    """Height [m] of the piston above the container's bottom."""
+    piston, bottom = walls.index(PISTON), walls.index(vessel.bottom_wall)
+    return float(walls.geometry[piston, 2] + walls.offset[piston, 2]
+                 - walls.geometry[bottom, 2] - walls.offset[bottom, 2])
+
+
+def void_ratio(state, vessel, height):
+    """e = (V - V_s)/V_s of the sample below a piston at ``height`` [m], V_s the sum of
+    the grains' volumes (overlaps neglected)."""
+    solid = float(np.sum(4.0 / 3.0 * np.pi * state.radii**3))
+    return (vessel.cross_section * height - solid) / solid
 
 
 def fit_ladder(rows):
