@@ -20,8 +20,8 @@ import numpy as np
 import pytest
 from scipy.optimize import curve_fit
 
-from graindyn.analysis.bauer import (BauerFitError, bauer, compression_index, fit_bauer,
-                                     fit_power_law, two_point)
+from graindyn.analysis.bauer import (BauerFitError, bauer, compression, compression_index,
+                                     fit_bauer, fit_power_law, two_point)
 
 # (e0, h_s [Pa], eta): the Guamo sand experiment of Oquendo et al. (Sec. 4) and their
 # grains of stiffness V = 0.1125 GPa (soft) and 18 GPa (stiff) (Table 2)
@@ -223,3 +223,19 @@ def test_power_law_weighted_errors_are_honest():
         assert abs(np.mean(unbiased) - truth) < 3 * np.std(unbiased) / np.sqrt(len(fits))
     for values, errors in ((a, [f.a_err for f in fits]), (b, [f.b_err for f in fits])):
         assert 1 / 1.3 < np.std(values, ddof=1) / np.mean(errors) < 1.3
+
+
+def test_equal_compression_gives_a_steep_power_law():
+    """Bauer curves through one compression c = 0.08 at p = 3.2 MPa, eta from 0.2 to
+    0.3: compression() reads c back, the curves meet there, and their (eta, h_s) follow
+    a power law whose exponent is ln(c)/eta at the middle of the range (-10.1), within
+    5 %; a family of twice the compression gives an exponent 27 % less steep."""
+    p = 3.2e6
+    eta = np.linspace(0.2, 0.3, 11)
+    for c, slope in ((0.08, np.log(0.08) / 0.25), (0.16, np.log(0.16) / 0.25)):
+        h_s = p * c ** (-1.0 / eta)
+        assert compression(p, h_s, eta) == pytest.approx(np.full(11, c), rel=1e-12)
+        assert bauer(p, 0.9, h_s, eta) == pytest.approx(np.full(11, 0.9 * np.exp(-c)))
+        fit = fit_power_law(eta, h_s)
+        assert fit.b == pytest.approx(slope, rel=0.05)
+    assert np.log(0.16) / np.log(0.08) == pytest.approx(0.73, abs=0.01)

@@ -251,6 +251,15 @@ def fit_bauer(p, e, e0=None, pressure="vertical", guess=None):
                     points=p.size, e0_fixed=e0 is not None, pressure=pressure)
 
 
+def compression(p, h_s, eta):
+    """ln(e0/e) = (p/h_s)^eta [-], the compression a Bauer curve (Eq. 19) gives at
+    pressures p [Pa].  Inverted, h_s = p c^(-1/eta): Bauer curves through one
+    compression c at one pressure p differ in h_s by c^(-1/eta), so fits of samples that
+    compress alike scatter along d ln h_s / d ln eta = ln(c)/eta, a power law of
+    exponent -10 for c = 0.08 near eta = 0.25 (docs/oedometer.md)."""
+    return (np.asarray(p, float) / h_s) ** eta
+
+
 def fit_power_law(x, y, y_err=None):
     """Fit y = a x^b by weighted linear least squares of ln y on ln x, each point
     weighted by (y/y_err)^2 when y_err is given (equal weights otherwise)."""
