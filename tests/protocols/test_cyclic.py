@@ -169,6 +169,26 @@ def test_the_procedure_extrapolates_relaxes_and_goes_on(procedure):
     assert residual_cycles(out) == [1, 2, 3, 4, 5, 8]
 
 
+def test_the_overlaps_before_and_after_each_relaxation_are_kept_and_drawn(procedure):
+    """relaxations/to_cycle_000008.npz holds every contact's relative overlap in the
+    extrapolated configuration and after its relaxation, whose largest and median
+    values are the jump's record; relaxation_figure draws them (Karrech Fig. 9)."""
+    from graindyn.protocols.cyclic import load_overlaps, relaxation_figure
+
+    out, results = procedure()
+    (jump,) = results["extrapolations"]
+    overlaps = load_overlaps(out)
+    assert list(overlaps) == [8]
+    before, after = overlaps[8]
+    assert before.size == jump["contacts_before"] and after.size == jump["contacts_after"]
+    assert before.max() == jump["largest_overlap_before"]
+    assert after.max() == jump["largest_overlap_after"]
+    assert np.median(after) == pytest.approx(jump["median_overlap_after"])
+    assert np.median(after) < np.median(before)
+    fig = relaxation_figure(out, "small")
+    assert len(fig.axes) == 1 and len(fig.axes[0].patches) == 2
+
+
 def test_h_grows_from_round_to_round(procedure):
     """extrapolated_growth = 2 with k_i = 2, k = 3, h = 1 over 12 cycles: cycles 1-5
     computed, 6 extrapolated (h = 1), 7-9 computed, 10-11 extrapolated (h = 2), 12

@@ -21,7 +21,10 @@ the coordination number, the packing fraction below the plate and the kinetic en
 (``rows``), and the residual displacement of every grain since the cycles started,
 u_beta(p) = r_beta(t_0 + p T) - r_beta(t_0), written to residuals/cycle_NNNNNN.npy in
 the run directory (``load_residuals`` reads them back as one (cycles, N, 3) array, the
-training data of analysis.settlement).
+training data of analysis.settlement).  With the sequential procedure
+(``extrapolation``) the overlaps of every contact before and after each relaxation go
+to relaxations/to_cycle_NNNNNN.npz (``load_overlaps``), drawn in relaxation.png
+(``relaxation_figure``, Karrech Fig. 9).
 
 Two modes (Karrech Sec. 5.3).  Fully confined (``plate_fraction = 1``, the default): the
 plate is an infinite plane over the whole top of the sample.  Partially confined
@@ -62,6 +65,7 @@ from .phases import SettleSettings, preparation
 
 PLATE = "plate"
 PARK = 100.0
+RELAXATIONS = "relaxations"     # the folder of the overlaps before and after each relaxation
 
 
 class CyclicSettings(SettleSettings):
@@ -232,8 +236,12 @@ class Cyclic(Protocol):
             series, settled, f"{self.title}: settling of {settled.get('grains', '?')} "
             f"grains, packing fraction {settled.get('packing_fraction', float('nan')):.3f}",
             self.vessel.bottom_wall)
-        return [save_figure(fig, rundir, "cyclic.png"),
+        made = [save_figure(fig, rundir, "cyclic.png"),
                 save_figure(settling, rundir, "settling.png")]
+        if results["extrapolations"]:
+            made.append(save_figure(relaxation_figure(rundir.path, self.title), rundir,
+                                    "relaxation.png"))
+        return made
 
 
 class Cycles(ProtocolPhase):
@@ -338,11 +346,16 @@ class Cycles(ProtocolPhase):
                 "estimator": law, "settlement_m": state["plate_0"] - self._plate(engine, k),
                 "largest_overlap_before": result.overlaps_before.max,
                 "largest_overlap_after": result.overlaps_after.max,
+                "median_overlap_before": result.overlaps_before.p50,
+                "median_overlap_after": result.overlaps_after.p50,
+                "contacts_before": result.overlaps_before.count,
+                "contacts_after": result.overlaps_after.count,
                 "relaxation_iterations": result.iterations, "relaxed": result.converged,
                 "functional_before_J": result.functional_before,
                 "functional_after_J": result.functional_after}
         state["jumps"].append(jump)
         self._save_residual(engine, state)
+        self._save_overlaps(result, jump)
         state["round"] = [self._round_record(engine, k)] if p.restart_cycles == 0 else []
         state["window_opens"] = state["cycle"] + p.restart_cycles
         self.protocol.log(
@@ -373,6 +386,17 @@ class Cycles(ProtocolPhase):
             folder.mkdir(exist_ok=True)
             np.save(folder / f"cycle_{state['cycle']:06d}.npy",
                     engine.state.positions - np.asarray(state["reference"]))
+
+    def _save_overlaps(self, result, jump):
+        """relaxations/to_cycle_NNNNNN.npz: every contact's overlap over the smaller
+        radius [-] in the extrapolated configuration ("before") and after its
+        relaxation ("after"), for the histograms of relaxation.png (Karrech Fig. 9)."""
+        if self.protocol.folder is not None:
+            folder = pathlib.Path(self.protocol.folder) / RELAXATIONS
+            folder.mkdir(exist_ok=True)
+            np.savez(folder / f"to_cycle_{jump['to_cycle']:06d}.npz",
+                     before=result.overlaps_before.values,
+                     after=result.overlaps_after.values)
 
     def _plate(self, engine, k):
         """Height [m] of the plate."""
@@ -514,6 +538,51 @@ def seat_plate(engine, k):
     offset = walls.offset[k].copy()
     offset[up] = float(top.max()) + 1e-3 * float(s.radii.min()) - walls.geometry[k, up]
     engine.place_wall(k, offset)
+
+
+def load_overlaps(run_dir):
+    """{to_cycle: (before, after)}: every contact's overlap over the smaller radius [-]
+    in each extrapolated configuration of a cyclic procedure and after its relaxation,
+    from its relaxations/ folder (Cycles._save_overlaps)."""
+    out = {}
+    for f in sorted((pathlib.Path(run_dir) / RELAXATIONS).glob("to_cycle_*.npz")):
+        with np.load(f) as data:
+            out[int(f.stem.removeprefix("to_cycle_"))] = (data["before"], data["after"])
+    if not out:
+        raise FileNotFoundError(f"{run_dir}: no {RELAXATIONS}/to_cycle_*.npz")
+    return out
+
+
+def relaxation_figure(run_dir, title=""):
+    """The distribution of the contacts' overlaps over the smaller radius before and
+    after each relaxation of a cyclic procedure (Karrech et al.'s Fig. 9): one panel
+    per extrapolation (at most four: the first ones and the last), histograms on
+    logarithmic bins, the largest overlap of each marked."""
+    from ..figures import subplots
+
+    overlaps = load_overlaps(run_dir)
+    jumps = list(overlaps)
+    if len(jumps) > 4:
+        jumps = jumps[:3] + jumps[-1:]
+    values = np.concatenate([np.concatenate(overlaps[c]) for c in jumps])
+    values = values[values > 0]
+    low = max(float(values.min()), 1e-12) if values.size else 1e-6
+    high = float(values.max()) if values.size else 1.0
+    bins = np.geomspace(low, max(high, 1.01 * low), 40)
+    fig, axes = subplots(1, len(jumps), figsize=(4.2 * len(jumps), 3.8), squeeze=False)
+    for ax, cycle in zip(axes[0], jumps):
+        for data, label, colour in ((overlaps[cycle][0], "extrapolated", "tab:red"),
+                                    (overlaps[cycle][1], "relaxed", "tab:blue")):
+            ax.hist(data[data > 0], bins=bins, histtype="step", color=colour,
+                    label=f"{label}: {data.size} contacts, largest {data.max(initial=0):.2g}")
+            if data.size:
+                ax.axvline(data.max(), color=colour, ls=":", lw=1)
+        ax.set(xscale="log", xlabel="overlap / smaller radius [-]",
+               title=f"extrapolation to cycle {cycle}")
+        ax.legend(fontsize=7, loc="upper left")
+    axes[0][0].set_ylabel("contacts")
+    fig.suptitle(f"{title}: overlaps before and after relaxation (Karrech Fig. 9)")
+    return fig
 
 
 def residual_cycles(run_dir):

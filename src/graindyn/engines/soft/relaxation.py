@@ -64,7 +64,8 @@ STANDARD_GRAVITY = 9.81     # [m/s^2], the force unit W = m g of the scaled vari
 class Overlaps(NamedTuple):
     """Distribution of the overlaps of the contacts (grain pairs and grain-wall) with
     delta > 0, relative to the smaller radius (the grain's radius against a wall) [-];
-    ``largest`` is the largest overlap in metres."""
+    ``largest`` is the largest overlap in metres; ``values`` every contact's relative
+    overlap (pairs, then grain-wall contacts), for a histogram (Karrech Fig. 9)."""
 
     count: int
     max: float
@@ -73,6 +74,7 @@ class Overlaps(NamedTuple):
     p90: float
     p99: float
     largest: float
+    values: np.ndarray
 
 
 class Relaxation(NamedTuple):
@@ -301,11 +303,11 @@ def overlap_distribution(positions, radii, walls, lists, symmetry=None):
     relative = np.concatenate([overlap / np.minimum(radii[pair[:, 0]], radii[pair[:, 1]]),
                                wall_overlap / radii[wall_grain]])
     if relative.size == 0:
-        return Overlaps(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        return Overlaps(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, relative)
     p50, p90, p99 = np.percentile(relative, [50, 90, 99])
     largest = float(max(overlap.max(initial=0.0), wall_overlap.max(initial=0.0)))
     return Overlaps(int(relative.size), float(relative.max()), float(relative.mean()),
-                    float(p50), float(p90), float(p99), largest)
+                    float(p50), float(p90), float(p99), largest, relative)
 
 
 def youngs_table(materials):
