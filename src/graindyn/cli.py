@@ -353,11 +353,15 @@ def study_settlement(
     procedure for several k and h; their settlement paths, the errors in settlement,
     coordination and configuration (Eq. 22) at the last cycle, and the gained time
     (t_full - t_procedure) / t_procedure, as summary.csv, paths.csv, summary.json and
-    PNG figures (docs/settlement.md)."""
+    PNG figures (docs/settlement.md).  Run again with the same --out, it reuses the bed
+    and the finished runs and resumes a run stopped by SIGINT or SIGTERM (exit 130/143)
+    from its checkpoint."""
+    import signal
     import tomllib
 
     from .config import ConfigError
     from .config.load import read_toml
+    from .runner import RunInterrupted
     from .studies.settlement import run_settlement_study
 
     overrides = {}
@@ -379,6 +383,9 @@ def study_settlement(
             replicas=replicas, echo=typer.echo)
     except (ConfigError, ValueError, FileExistsError) as err:
         _fail(err)
+    except RunInterrupted as err:
+        _fail(f"study interrupted by {signal.Signals(err.signum).name}, the running run's "
+              "checkpoint written: the same command resumes it", 128 + err.signum)
     for name, r in summary["runs"].items():
         typer.echo(f"  {name}: settlement {1e3 * r['settlement_m']:.4g} mm, error "
                    f"{100 * r['settlement_error']:.3g} %, coordination error "

@@ -5,7 +5,11 @@ bed and the finished runs when called again."""
 import csv
 import json
 import math
+import os
 import shutil
+import signal
+import threading
+import time
 
 import numpy as np
 import pytest
@@ -13,7 +17,9 @@ from typer.testing import CliRunner
 
 from graindyn.cli import app
 from graindyn.config.load import read_toml
-from graindyn.studies.settlement import (FULL, QUICK, contact_coordination, perturb, plan,
+from graindyn.runner import RunInterrupted
+from graindyn.studies.settlement import (FULL, PARTIAL, QUICK, contact_coordination,
+                                         perturb, plan, run_from_bed,
                                          run_settlement_study, set_dotted, study_config)
 
 
@@ -117,6 +123,48 @@ def test_a_second_call_reuses_the_bed_and_the_runs(study):
     assert result.output.count("reusing the finished run") == len(summary["runs"])
     again = json.loads((out / "summary.json").read_text())
     assert again["runs"][FULL]["cpu_s"] == summary["runs"][FULL]["cpu_s"]
+
+
+def _terminate_when(log, text, timeout=600.0):
+    """Send this process SIGTERM once the file ``log`` holds ``text``."""
+    deadline = time.time() + timeout
+    while time.time() < deadline and not (log.exists() and text in log.read_text()):
+        time.sleep(0.01)
+    os.kill(os.getpid(), signal.SIGTERM)
+
+
+def test_an_interrupted_run_resumes_from_its_checkpoint_and_sums_its_times(study, tmp_path):
+    """SIGTERM while a study run is on its cycles: RunInterrupted, the session's times
+    kept in study_partial.json; the next call resumes the run from its checkpoint, to
+    the same settlement path as the study's uninterrupted full DEM run, with both
+    sessions' CPU times; a session that ended without closing its file starts over."""
+    out, summary, _ = study
+    bed = tmp_path / "bed"
+    shutil.copytree(out / "bed", bed)
+    settings, _ = plan(8, 2, (2,), (2,), 3, 2)
+    folder = tmp_path / "run"
+    stop = threading.Thread(target=_terminate_when, args=(folder / "run.log", "cycle 2:"))
+    stop.start()
+    with pytest.raises(RunInterrupted):
+        run_from_bed(bed, settings[FULL], folder, echo=lambda *a: None)
+    stop.join()
+    partial = json.loads((folder / PARTIAL).read_text())
+    assert partial["closed"] and partial["sessions"] == 1
+    assert partial["cpu_s"] > 0 and partial["steps"] > 0
+    lines = []
+    record = run_from_bed(bed, settings[FULL], folder, echo=lines.append)
+    assert any("resuming from its checkpoint" in line for line in lines)
+    assert record["path"] == summary["paths"][FULL]
+    assert record["sessions"] == 2 and record["cpu_s"] > partial["cpu_s"]
+    whole = json.loads((out / "runs" / FULL / "study_run.json").read_text())
+    assert record["steps"] == whole["steps"]
+    assert not (folder / PARTIAL).exists()
+    (folder / "study_run.json").unlink()
+    (folder / PARTIAL).write_text(json.dumps({**partial, "closed": False}))
+    lines = []
+    again = run_from_bed(bed, settings[FULL], folder, echo=lines.append)
+    assert not any("resuming" in line for line in lines)
+    assert again["sessions"] == 1 and again["path"] == summary["paths"][FULL]
 
 
 def test_a_bed_of_another_config_is_refused(study):

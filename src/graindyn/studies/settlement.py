@@ -12,8 +12,11 @@ last but one) is the settled state; it is kept as ``bed/settled.h5``.  Each stud
 is a run directory holding that checkpoint and a config that differs from the bed's
 only in ``protocol`` (cycles, extrapolation, initial_cycles, computed_cycles,
 extrapolated_cycles), and ``runner.resume`` runs its cycles phase.  A second call with
-the same out folder reuses the bed and every finished run (``study_run.json``); an
-unfinished run starts again from the settled bed, so that its timing is one session's.
+the same out folder reuses the bed and every finished run (``study_run.json``); a run
+stopped by SIGINT or SIGTERM (its checkpoint written) resumes from its checkpoint, its
+CPU and wall times summed over its sessions (``study_partial.json``); a run whose
+session ended otherwise (killed, crashed) starts again from the settled bed, since the
+time it spent is unknown.
 
 Measures, run p against the full molecular dynamics f, at the last cycle N:
 
@@ -59,6 +62,7 @@ from ..analysis.settlement import relative_error
 LAWS = ("linear", "shenton")
 FULL = "full_dem"
 REPLICA = "full_dem_replica_"
+PARTIAL = "study_partial.json"      # the times of an interrupted study run's sessions
 # how far replica r moves one grain of the settled bed: r x PERTURBATION [m], far below
 # any length of the bed (round-off of the positions is about 1e-18 m)
 PERTURBATION = 1e-9
@@ -269,16 +273,22 @@ def run_from_bed(bed, settings, folder, echo=print, threads=None, perturbation=0
     run (study_run.json): results, path, final state measures and times."""
     from ..config import dumps, validate
     from ..config.load import read_toml
-    from ..runner import resume
 
     bed, folder = pathlib.Path(bed), pathlib.Path(folder)
-    done = folder / "study_run.json"
+    done, partial = folder / "study_run.json", folder / PARTIAL
+    same = {"settings": settings, "perturbation_m": perturbation}
     if done.exists():
         record = json.loads(done.read_text())
         if record["settings"] == settings \
                 and record.get("perturbation_m", 0.0) == perturbation:
             echo(f"{folder.name}: reusing the finished run")
             return record
+    spent = json.loads(partial.read_text()) if partial.exists() and not done.exists() \
+        else {}
+    if spent.get("closed") and all(spent.get(k) == v for k, v in same.items()):
+        echo(f"{folder.name}: resuming from its checkpoint ({spent['cpu_s']:.1f} s CPU "
+             f"in {spent['sessions']} session(s) before)")
+        return _timed_resume(folder, settings, perturbation, spent, echo, threads)
     if folder.exists():
         shutil.rmtree(folder)
     data = read_toml(bed / "run" / "config.toml")
@@ -297,16 +307,53 @@ def run_from_bed(bed, settings, folder, echo=print, threads=None, perturbation=0
     if (bed / "run" / "vtk").exists():
         shutil.copytree(bed / "run" / "vtk", folder / "vtk")
     echo(f"{folder.name}: {settings}")
+    return _timed_resume(folder, settings, perturbation,
+                         {"cpu_s": 0.0, "wall_s": 0.0, "steps": 0, "sessions": 0}, echo,
+                         threads)
+
+
+def _timed_resume(folder, settings, perturbation, spent, echo, threads):
+    """``runner.resume`` of the study run in ``folder``, timed; ``spent``: the CPU and
+    wall times [s], steps and sessions of its earlier sessions.  Interrupted by a signal
+    (runner.RunInterrupted: its checkpoint written), the times so far go to
+    study_partial.json, marked closed, and the next call resumes the run from its
+    checkpoint, adding them up; a session that ends otherwise (killed, crashed) leaves
+    the file open, and the run then starts again from the bed, its time being unknown.
+    Returns the record of the finished run (study_run.json)."""
+    from ..runner import RunInterrupted, resume
+
+    folder = pathlib.Path(folder)
+    partial = folder / PARTIAL
+    base = {"settings": settings, "perturbation_m": perturbation}
+    partial.write_text(json.dumps({**base, **spent, "closed": False}, indent=1))
+    start = _checkpoint_step(folder)
     cpu, wall = time.process_time(), time.perf_counter()
-    results = resume(folder, show_progress=False, echo=lambda *a: None, threads=threads)
-    cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
-    record = {"settings": settings, "perturbation_m": perturbation, "cpu_s": cpu,
-              "wall_s": wall,
-              "steps": results.get("steps_this_session"), **final_state(folder, results)}
-    done.write_text(json.dumps(record, indent=1, default=float))
+    try:
+        results = resume(folder, show_progress=False, echo=lambda *a: None, threads=threads)
+    except RunInterrupted:
+        partial.write_text(json.dumps(
+            {**base, "cpu_s": spent["cpu_s"] + time.process_time() - cpu,
+             "wall_s": spent["wall_s"] + time.perf_counter() - wall,
+             "steps": spent["steps"] + _checkpoint_step(folder) - start,
+             "sessions": spent["sessions"] + 1, "closed": True}, indent=1))
+        raise
+    cpu = spent["cpu_s"] + time.process_time() - cpu
+    wall = spent["wall_s"] + time.perf_counter() - wall
+    record = {**base, "cpu_s": cpu, "wall_s": wall, "sessions": spent["sessions"] + 1,
+              "steps": (results.get("steps_this_session") or 0) + spent["steps"],
+              **final_state(folder, results)}
+    (folder / "study_run.json").write_text(json.dumps(record, indent=1, default=float))
+    partial.unlink()
     echo(f"{folder.name}: {cpu:.1f} s CPU, settlement {1e3 * record['settlement_m']:.4g} mm"
          f" at cycle {record['cycle']}, coordination {record['coordination']:.3f}")
     return record
+
+
+def _checkpoint_step(folder):
+    """The engine step of the newest checkpoint of the run directory ``folder``."""
+    from ..output import checkpoint
+
+    return int(checkpoint.latest(pathlib.Path(folder) / "checkpoints", warn=lambda *a: None)[2])
 
 
 def settlement_path(results):
