@@ -1,4 +1,4 @@
-"""GPU speed of graindyn (issue 6): one large bed, or an ensemble of small ones.
+"""GPU speed of graindyn: one large bed, or an ensemble of small ones.
 
     python benchmarks/gpu_bench.py bed STATE SIZE NX NY WARM STEPS
     python benchmarks/gpu_bench.py ensemble STATE RADIUS K WARM STEPS

@@ -1,4 +1,4 @@
-"""Single-grain scenarios of the contact laws of issue 4, run end to end through
+"""Single-grain scenarios of the contact laws, run end to end through
 ``gd.Simulation`` (neighbour list, wall contact, integrator) and compared with
 rigid-body mechanics and closed-form results:
 
