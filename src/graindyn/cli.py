@@ -189,14 +189,21 @@ def sweep_command(
     summarize: Annotated[bool, typer.Option(
         "--summarize", help="Write the summaries of the runs finished so far (with "
         "--keep: those recorded there too), run nothing.")] = False,
+    seeds: Annotated[Optional[str], typer.Option(
+        help="Run only these seeds of the sweep (comma-separated, e.g. 3,4,5); the "
+        "summary covers every finished run.")] = None,
+    points: Annotated[Optional[str], typer.Option(
+        help="Run only these points (their run folders, comma-separated, as --dry-run "
+        "lists them: reference,youngs_modulus=1e9).")] = None,
 ):
     """Run a parameter sweep on Dask: every point (parameter, value, seed) in its own
     run directory, then summary.csv, summary.json and the protocol's tables and figures.
     Runs with backend gpu (and no --scheduler) run in this process as one GPU ensemble.
 
     Rerunning the same command skips finished points, resumes interrupted ones and
-    retries failed ones.  Exit codes: 0 all points finished, 1 some failed (listed),
-    2 a bad sweep file or config, 130 interrupted.
+    retries failed ones; --seeds and --points run a part of the sweep first, into the
+    same directory.  Exit codes: 0 all points (those selected) finished, 1 some failed
+    (listed), 2 a bad sweep file or config, 130 interrupted.
     """
     from .config import ConfigError
     from .sweep import Sweep, SweepInterrupted, run as run_sweep, summarize as summarize_sweep
@@ -204,17 +211,27 @@ def sweep_command(
 
     if scheduler is not None and workers is not None:
         _fail("--workers sets the size of the local cluster: leave it out with --scheduler")
+    chosen = None
+    if seeds is not None:
+        try:
+            chosen = {int(v) for v in seeds.split(",") if v.strip()}
+        except ValueError:
+            chosen = set()
+        if not chosen:
+            _fail(f"--seeds = {seeds!r}: give integers separated by commas")
+    names = None if points is None else {v.strip() for v in points.split(",") if v.strip()}
     try:
         plan = Sweep.load(sweep_file)
         target = out or pathlib.Path("runs") / sweep_file.stem
         if dry_run:
+            listed = {p.name for p in plan.selected(chosen, names)}
             runs = {p.name for p in plan.runs}
             gpu = {p.name for p in plan.runs if p.config.run.backend == "gpu"}
             typer.echo(f"{sweep_file}: ok, {len(plan.points)} points, {len(runs)} runs "
                        f"into {target}" + (f"; {len(gpu)} with backend gpu would run as one "
                                            "GPU ensemble" if gpu and scheduler is None
                                            else ""))
-            for p in plan.points:
+            for p in (p for p in plan.points if p.name in listed):
                 what = "reference" if p.parameter is None else \
                     f"{p.parameter} = {value_text(p.value)}"
                 typer.echo(f"  {p.name:40s} {what}, seed {p.seed}"
@@ -225,7 +242,8 @@ def sweep_command(
             summarize_sweep(plan, target, keep=keep)
             return
         report = run_sweep(plan, target, scheduler=scheduler, workers=workers,
-                           threads_per_worker=threads_per_worker, keep=keep)
+                           threads_per_worker=threads_per_worker, keep=keep,
+                           seeds=chosen, points=names)
     except (ConfigError, FileExistsError) as err:
         _fail(err)
     except SweepInterrupted as err:

@@ -209,6 +209,22 @@ class Sweep:
                 runs.append(p)
         return runs
 
+    def selected(self, seeds=None, points=None):
+        """The runs of the seeds ``seeds`` (ints) whose point folder (the run directory's
+        first part: "reference", "youngs_modulus=1e9") is one of ``points``; None
+        selects every seed or point.  ConfigError names a seed or a point folder that
+        the sweep does not have."""
+        runs = self.runs
+        folders = list(dict.fromkeys(p.name.split("/")[0] for p in runs))
+        known = list(dict.fromkeys(p.seed for p in runs))
+        unknown = [f"seed {s}" for s in seeds or () if s not in known] + [
+            f"point {name!r}" for name in points or () if name not in folders]
+        if unknown:
+            raise ConfigError(f"{self.path.name} has no {', no '.join(unknown)} (seeds: "
+                              f"{', '.join(map(str, known))}; points: {', '.join(folders)})")
+        return [p for p in runs if (seeds is None or p.seed in seeds)
+                and (points is None or p.name.split("/")[0] in points)]
+
     @classmethod
     def load(cls, path):
         from .runner import check
@@ -559,6 +575,7 @@ class Report:
     runs: list
     paths: list
     summary_error: str | None = None
+    wanted: list | None = None       # the names of the runs asked for (None: every run)
 
     @property
     def finished(self):
@@ -574,19 +591,24 @@ class Report:
 
     @property
     def exit_code(self):
-        """0 when every run finished and the summary was written, 1 otherwise."""
-        return 0 if len(self.finished) == len(self.runs) and not self.summary_error else 1
+        """0 when every run asked for finished and the summary was written, 1
+        otherwise."""
+        asked = [p for p in self.runs if self.wanted is None or p.name in self.wanted]
+        return 0 if all(p.status == "finished" for p in asked) and not self.summary_error \
+            else 1
 
 
 def run(sweep: Sweep, out, scheduler=None, workers=None, threads_per_worker=1,
-        client=None, echo=None, keep=None):
+        client=None, echo=None, keep=None, seeds=None, points=None):
     """Run every unfinished point of ``sweep`` into the sweep directory ``out`` on Dask,
     then write the summary; returns the Report.  ``client`` (a distributed.Client) wins
     over ``scheduler`` (an address), which wins over a LocalCluster of ``workers``
     processes.  ``echo(text)`` gets one line per finished point (default: rich).
     ``keep``: a keep folder (module docstring): the runs recorded there are taken as
     finished, and every run that finishes, the sweep's files and the summaries are
-    recorded there.  SweepInterrupted on Ctrl-C (after the running points were
+    recorded there.  ``seeds``, ``points``: run only the unfinished runs of these seeds
+    and point folders (Sweep.selected), in the same sweep directory; the summary covers
+    every finished run.  SweepInterrupted on Ctrl-C (after the running points were
     cancelled)."""
     import numba
 
@@ -598,7 +620,10 @@ def run(sweep: Sweep, out, scheduler=None, workers=None, threads_per_worker=1,
     if scheduler is None and client is None and threads > numba.config.NUMBA_NUM_THREADS:
         raise ConfigError(f"--threads-per-worker = {threads}: this machine offers at most "
                           f"{numba.config.NUMBA_NUM_THREADS}")
-    todo = _open(sweep, out, keep, say, "to run")
+    wanted = None
+    if seeds is not None or points is not None:
+        wanted = {p.name for p in sweep.selected(seeds, points)}
+    todo = _open(sweep, out, keep, say, "to run", wanted)
     batched = [p for p in todo if p.config.run.backend == "gpu"] \
         if scheduler is None and client is None else []
     todo = [p for p in todo if p not in batched]
@@ -608,7 +633,7 @@ def run(sweep: Sweep, out, scheduler=None, workers=None, threads_per_worker=1,
         with _dask_client(scheduler, workers, threads, len(todo), client) as (c, where):
             say(f"running on {where}")
             _submit_all(c, todo, out, threads, say, keep)
-    report = finish(sweep, out, say)
+    report = finish(sweep, out, say, wanted)
     if keep is not None:
         keep_sweep_files(out, keep, report.paths)
     return report
@@ -625,10 +650,10 @@ def run_order(todo, out, seeds):
         not _has_checkpoint(out / item[1].name), rank.get(item[1].seed, 0), item[0]))]
 
 
-def _open(sweep: Sweep, out, keep, say, what):
+def _open(sweep: Sweep, out, keep, say, what, wanted=None):
     """Make the sweep directory ``out`` ready (the records of ``keep`` brought in,
     prepare, the finished runs recorded in ``keep``), say how many runs are finished,
-    and return the others."""
+    and return the others (of those named in ``wanted``, if given)."""
     restored = restore_records(sweep, out, keep) if keep is not None else 0
     prepare(sweep, out)
     runs = sweep.runs
@@ -640,9 +665,13 @@ def _open(sweep: Sweep, out, keep, say, what):
         keep_sweep_files(out, keep)
     todo = run_order([p for p in runs if not finished(out / p.name)], out,
                      list(dict.fromkeys(p.seed for p in sweep.points)))
+    left = len(todo)
+    if wanted is not None:
+        todo = [p for p in todo if p.name in wanted]
     say(f"sweep {sweep.path.name}: {len(runs)} runs ({len(sweep.points)} points), "
-        f"{len(runs) - len(todo)} finished earlier"
+        f"{len(runs) - left} finished earlier"
         + (f" ({restored} of them taken from {keep})" if restored else "")
+        + (f", {len(todo)} of the {left} others selected" if wanted is not None else "")
         + f", {len(todo)} {what}, into {out}")
     return todo
 
@@ -851,9 +880,9 @@ def summary_hook(kind):
     return getattr(PROTOCOLS.get(kind), "summarize_sweep", None)
 
 
-def finish(sweep: Sweep, out, say=None):
+def finish(sweep: Sweep, out, say=None, wanted=None):
     """Collect the points, write the summaries (general and protocol), say what failed;
-    returns the Report."""
+    returns the Report (``wanted``: the names of the runs asked for, Report.wanted)."""
     say = say or (lambda text, style=None: print(text))
     out = pathlib.Path(out)
     points = collect(sweep, out)
@@ -877,7 +906,8 @@ def finish(sweep: Sweep, out, say=None):
         if p.name not in seen:
             seen.add(p.name)
             runs.append(p)
-    report = Report(out, points, runs, paths, summary_error)
+    report = Report(out, points, runs, paths, summary_error,
+                    None if wanted is None else sorted(wanted))
     say(f"{len(report.finished)} of {len(runs)} runs finished; summary: "
         + ", ".join(str(p.relative_to(out)) if p.is_relative_to(out) else str(p)
                     for p in paths))

@@ -263,6 +263,29 @@ def test_keep_folder_records_the_runs_and_a_new_directory_starts_from_it(schedul
     assert not (tmp_path / "out3" / "reference").exists()
 
 
+def test_seeds_and_points_run_a_part_of_the_sweep_first(scheduler, tmp_path):
+    """--seeds 2 runs seed 2 alone (exit 0: every run asked for finished) and leaves
+    seed 1 pending in the summary; the whole sweep then runs seed 1 alone; a seed or a
+    point the sweep does not have is refused before anything runs."""
+    path = write_sweep(tmp_path, {"seeds": [1, 2]})
+    out = tmp_path / "out"
+    args = ["sweep", str(path), "--out", str(out), "--scheduler", scheduler]
+    part = runner.invoke(app, args + ["--seeds", "2", "--points", "reference"])
+    assert part.exit_code == 0, part.output
+    assert "1 of the 2 others selected" in part.output
+    assert (out / "reference" / "seed-2" / "results.json").is_file()
+    assert not (out / "reference" / "seed-1").exists()
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["runs"] == {"finished": 1, "failed": 0, "pending": 1}
+    rest = runner.invoke(app, args)
+    assert rest.exit_code == 0, rest.output
+    assert "1 finished earlier" in rest.output and "[1/1] finished reference/seed-1" \
+        in rest.output
+    for bad in (["--seeds", "7"], ["--points", "nowhere"]):
+        refused = runner.invoke(app, args + bad)
+        assert refused.exit_code == 2 and "has no" in refused.output, refused.output
+
+
 def test_unreachable_scheduler_is_a_clear_error(tmp_path, monkeypatch):
     monkeypatch.setattr(sweeps, "CONNECT_TIMEOUT", "1s")
     path = write_sweep(tmp_path, {"seeds": [1]})
