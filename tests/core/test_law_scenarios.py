@@ -141,6 +141,26 @@ def test_oquendo_sliding_then_rolling(tan_theta_r, dim, model):
     _never_gains(rec[:, -1], 0.5 * sim.state.masses[0] * v0**2)
 
 
+@pytest.mark.parametrize("model", READINGS, ids=lambda m: m.tangential)
+def test_friction_set_off_and_back_on_during_a_run(model):
+    """Simulation.set_friction(0): a grain launched along the plane keeps its speed and
+    gets no spin (no tangential force); set_friction(None) gives the material's mu_k
+    back, and it slows at mu_k g (Eq. 5) from there; a negative value is refused."""
+    v0 = 0.5
+    sim, _ = _resting(_oquendo_material(), model, v=(v0, 0, 0), dt=_literal_dt(model))
+    t_star = v0 / (MU_K * G * (1 + 1 / 0.4))
+    sim.set_friction(0.0)
+    free = _record(sim, int(0.5 * t_star / sim.dt))
+    assert np.max(np.abs(free[:, 2] - v0)) < 1e-9 * v0
+    assert np.max(np.abs(free[:, 5:8])) == 0.0
+    sim.set_friction(None)
+    rec = _record(sim, int(0.5 * t_star / sim.dt))
+    assert _slope(rec[:, 0], rec[:, 2], rec[1, 0], rec[-1, 0]) == pytest.approx(
+        -MU_K * G, rel=1e-2)
+    with pytest.raises(ValueError, match="friction must be >= 0"):
+        sim.set_friction(-0.1)
+
+
 @pytest.mark.parametrize("dim", [3, 2])
 @pytest.mark.parametrize("ratio,sticks", [(0.8, True), (1.2, False)])
 def test_oquendo_incline_sticks_below_static_angle(ratio, sticks, dim):

@@ -1,6 +1,7 @@
 """Protocols built from phases: a protocol made only of existing phases (settle, then
 hold) joins the registry and runs from a config like the built-in ones; composite
 triggers fire where their parts say."""
+import copy
 import json
 from typing import Literal
 
@@ -11,7 +12,8 @@ import graindyn as gd
 from graindyn.config import validate
 from graindyn.core.triggers import After, Before, Periodic
 from graindyn.protocols import PROTOCOLS, Protocol, register
-from graindyn.protocols.phases import Hold, Settle, SettleSettings
+from graindyn.protocols.phases import (Hold, Settle, SettleSettings,
+                                       preparation_friction)
 from graindyn.runner import execute
 from graindyn.schema import Float
 
@@ -69,6 +71,44 @@ def test_a_protocol_of_existing_phases_runs_from_a_config(settle_hold, tmp_path)
     assert series["force_zlo_N"][-1] == pytest.approx(weight, rel=0.1)
     meta = json.loads((tmp_path / "run" / "meta.json").read_text())
     assert meta["engine"] == "soft"
+
+
+def test_grains_settled_without_friction_pack_denser(tmp_path):
+    """protocol.settle_friction = 0: the grains settle frictionless (denser than with
+    their own mu = 0.5, the classic way to prepare a dense sample) and get their
+    friction back after the settling; an engine without friction coefficients to
+    change refuses it."""
+    base = {**SMALL, "protocol": {"kind": "deposition", "max_time": 0.3,
+                                  "criterion": "energy_ratio", "threshold": 1e-4},
+            "output": {"series_every": 5e-3, "figures": False}}
+    packings = {}
+    for friction in (None, 0.0):
+        data = copy.deepcopy(base)
+        if friction is not None:
+            data["protocol"]["settle_friction"] = friction
+        results = execute(validate(data), tmp_path / f"run_{friction}", show_progress=False,
+                          echo=lambda *a: None)
+        packings[friction] = results["packing_fraction"]
+    assert packings[0.0] > packings[None] + 0.01, packings
+
+
+def test_settle_friction_is_set_for_the_settling_and_taken_back():
+    """preparation_friction gives the engine settle_friction, then None (the materials'
+    own) at the end; nothing when it is not set; an engine without friction
+    coefficients to change refuses it."""
+    calls = []
+
+    class Engine:
+        def set_friction(self, value=None):
+            calls.append(value)
+
+    settings = SettleSettings(settle_friction=0.1)
+    preparation_friction(Engine(), settings, True)
+    preparation_friction(Engine(), settings, False)
+    preparation_friction(Engine(), SettleSettings(), True)
+    assert calls == [0.1, None]
+    with pytest.raises(ValueError, match="settle_friction needs an engine"):
+        preparation_friction(object(), settings, True)
 
 
 def test_composite_triggers_fire_where_their_parts_say():

@@ -46,6 +46,12 @@ class SettleSettings(Section):
     rain_height: Float | None = _f(None, "height [m] above the floor the grains are "
                                    "released from (filling = rain; default: the top of "
                                    "the container); > 0", gt=0)
+    settle_friction: Float | None = _f(
+        None, "sliding and static friction coefficient [-] of every material (grains and "
+        "walls) while the grains are rained in and settle, the materials' own coming "
+        "back for the phases after: 0 (friction off, then on) packs the grains denser, "
+        "a large value looser (engine.set_friction); default: the materials' own; >= 0",
+        ge=0)
 
     def fill_settings(self):
         """Keyword arguments of prepare.fill."""
@@ -70,7 +76,10 @@ class Settle(Phase):
     sample's packing fraction, coordination, apparent weight on the bottom, and their
     ``history`` while it settles (Karrech et al.'s Fig. 3: time [s], bottom force over
     the weight, coordination number, packing fraction of the bed between the floor and
-    its highest grain), sampled between compiled chunks at most HISTORY_ROWS times."""
+    its highest grain), sampled between compiled chunks at most HISTORY_ROWS times.
+    With ``settle_friction`` the materials have that friction coefficient while it
+    (and a Rain before it) runs, set again whenever the phase starts or resumes, and
+    their own from its end on (preparation_friction)."""
 
     name = "settle"
     HISTORY_ROWS = 400
@@ -85,6 +94,7 @@ class Settle(Phase):
         return self.p.max_time
 
     def run(self, engine, state, *, every=(), between=None):
+        preparation_friction(engine, self.p, True)
         state.setdefault("end_time", engine.time + self.p.max_time)
         if "armed_time" not in state:
             up = self.vessel.dim - 1
@@ -108,6 +118,7 @@ class Settle(Phase):
             state["reached"] = status == "condition"
             history.append(self.sample(engine))
             state["report"] = self.report(engine, state)
+            preparation_friction(engine, self.p, False)
         return "stopped" if status == "stopped" else "done"
 
     def sample(self, engine):
@@ -148,6 +159,18 @@ class Hold(Phase):
 
     def run(self, engine, state, *, every=(), between=None):
         return run_until(engine, state, "end_time", self.time, every=every, between=between)
+
+
+def preparation_friction(engine, settings: SettleSettings, on):
+    """Give the materials settle_friction (``on``) or their own again (not ``on``),
+    when settings.settle_friction is set; ValueError for an engine without Coulomb
+    friction coefficients to change (engine.set_friction)."""
+    if settings.settle_friction is None:
+        return
+    if not hasattr(engine, "set_friction"):
+        raise ValueError("protocol.settle_friction needs an engine whose friction "
+                         "coefficients can change during a run (the soft engine)")
+    engine.set_friction(settings.settle_friction if on else None)
 
 
 def preparation(settings: SettleSettings, vessel):
@@ -198,6 +221,7 @@ class Rain(Phase):
         return point
 
     def run(self, engine, state, *, every=(), between=None):
+        preparation_friction(engine, self.p, True)
         s = engine.state
         up = self.vessel.dim - 1
         if "released" not in state:

@@ -5,6 +5,7 @@ chunks with Python triggers in between.
 ...                  walls=box((0, 0, 0), (L, L, H)), dt=1e-6)      # doctest: +SKIP
 >>> sim.run(time=0.5, until=MaxSpeedBelow(1e-3))                      # doctest: +SKIP
 """
+import dataclasses
 import math
 
 import numba
@@ -739,6 +740,24 @@ class Simulation:
         whichever is later, from where the wall is (a sinusoid's reference place, the
         walls' ``base``, is set there); a fixed wall stops at once."""
         self.walls.prescribe(wall, motion, self.time)
+
+    def set_friction(self, friction=None):
+        """Give every material the sliding and static friction coefficients
+        (Material.friction_sliding, friction_static) ``friction`` [-] from now on, the
+        contact tables rebuilt; None: the materials' own again.  A sample can so be
+        prepared with another friction than it is then tested with (frictionless grains
+        settle denser, rougher ones looser: SettleSettings.settle_friction).  The
+        tangential springs keep their state; a spring longer than the new Coulomb limit
+        is cut back to it at its contact's next step, as any law does.  CPU backend only
+        (the GPU holds its tables on the device)."""
+        if self.backend == "gpu":
+            raise ValueError("set_friction runs on the CPU backend only")
+        if friction is not None and not friction >= 0:
+            raise ValueError(f"friction must be >= 0, got {friction}")
+        materials = self.materials if friction is None else [
+            dataclasses.replace(m, friction_sliding=float(friction),
+                                friction_static=float(friction)) for m in self.materials]
+        self.params = self.model.pair_table(materials, self.state.dim)
 
     def set_servo(self, wall, *, force=None, stress=None, gain=None, time_constant=None,
                   stiffness=None, max_speed=None, direction=None):
