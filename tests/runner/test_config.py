@@ -52,6 +52,12 @@ BAD = [
      "materials.0.density = True"),
     ("infinite stiffness", _set(("materials", 0, "kn"), math.inf), "materials.0.kn = inf"),
     ("nan in a vector", _set(("run", "gravity"), [0.0, 0.0, math.nan]), "run.gravity.2 = nan"),
+    ("negative settling friction", _set(("protocol", "settle_friction"), -0.5),
+     "protocol.settle_friction"),
+    ("settling friction of a hard-grain engine",
+     lambda d: (_set(("protocol", "settle_friction"), 0.0)(d),
+                _set(("engine",), {"kind": "event_driven"})(d)),
+     "protocol.settle_friction: engine.kind = 'event_driven' cannot change"),
 ]
 if unavailable():     # a machine without a usable GPU refuses the gpu backend
     BAD.append(("gpu backend", _set(("run", "backend"), "gpu"), "run.backend"))

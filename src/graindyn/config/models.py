@@ -390,6 +390,14 @@ class Config(Section):
                              f"symmetry planes; engines that do: {', '.join(able)}")
         if self.walls.symmetry and self.run.backend != "cpu":
             raise ValueError("walls.symmetry: symmetry planes run on the CPU backend only")
+        if getattr(self.protocol, "settle_friction", None) is not None:
+            if not engines.ENGINES[self.engine.kind].friction_change:
+                able = [e.kind for e in engines.ENGINES.values() if e.friction_change]
+                raise ValueError(f"protocol.settle_friction: engine.kind = "
+                                 f"{self.engine.kind!r} cannot change its friction during a "
+                                 f"run; engines that can: {', '.join(able)}")
+            if self.run.backend != "cpu":
+                raise ValueError("protocol.settle_friction runs on the CPU backend only")
         if self.walls.symmetry:
             from .build import symmetry, vessel
             periodic = [int(any(a == d for a, _, _ in self.walls.periodic)) for d in range(3)]

@@ -46,6 +46,8 @@ class EngineKind:
       materials before a run only then).
     symmetry : whether it runs symmetry planes (core/symmetry.py); config validation
       refuses them for an engine that does not.
+    friction_change : whether its friction coefficients can change during a run
+      (``set_friction``); config validation refuses protocol.settle_friction otherwise.
     """
 
     kind: str
@@ -56,6 +58,7 @@ class EngineKind:
     wall_motions: tuple = ("fixed", "velocity", "sinusoid", "servo", "piston")
     contact_laws: bool = True
     symmetry: bool = False
+    friction_change: bool = False
 
 
 ENGINES: dict[str, EngineKind] = {}

@@ -72,4 +72,5 @@ def check(state, setup, settings: SoftEngine):
 
 SOFT = EngineKind("soft", SoftEngine, build, check,
                   "time-driven soft particles: overlapping grains, contact laws, an "
-                  "explicit integrator with a fixed time step", symmetry=True)
+                  "explicit integrator with a fixed time step", symmetry=True,
+                  friction_change=True)
