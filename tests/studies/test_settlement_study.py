@@ -35,7 +35,7 @@ def study(tmp_path_factory):
 def test_the_study_writes_its_tables_and_figures(study):
     out, summary, _ = study
     for name in ("summary.csv", "paths.csv", "summary.json", "settlement_paths.png",
-                 "settlement_errors.png"):
+                 "settlement_errors.png", "settlement_relaxation.png"):
         assert (out / name).stat().st_size > 0, name
     assert json.loads((out / "summary.json").read_text())["runs"].keys() == \
         summary["runs"].keys()

@@ -559,8 +559,10 @@ def figures(out, summary):
     """settlement_paths.png: settlement [mm] against the cycle for the k family and the
     h family with full DEM (Karrech Fig. 11); settlement_errors.png: coordination against
     the cycle and the errors in coordination, configuration (E_r) and settlement
-    against the gained time (Fig. 12, and Fig. 13 for the partially confined mode).
-    Returns their paths."""
+    against the gained time (Fig. 12, and Fig. 13 for the partially confined mode);
+    settlement_relaxation.png: the overlaps before and after the relaxations of the
+    first run of the families that kept them (protocols.cyclic.relaxation_figure,
+    Fig. 9).  Returns their paths."""
     from ..figures import subplots
 
     out = pathlib.Path(out)
@@ -628,4 +630,14 @@ def figures(out, summary):
     fig.tight_layout()
     second = out / "settlement_errors.png"
     fig.savefig(second, dpi=110)
-    return [first, second]
+    made = [first, second]
+    from ..protocols.cyclic import RELAXATIONS, relaxation_figure
+
+    relaxed = [name for name in (*families["k"], *families["h"])
+               if (out / "runs" / name / RELAXATIONS).is_dir()]
+    if relaxed:
+        fig = relaxation_figure(out / "runs" / relaxed[0], label(relaxed[0]))
+        fig.tight_layout()
+        made.append(out / "settlement_relaxation.png")
+        fig.savefig(made[-1], dpi=110)
+    return made
