@@ -244,8 +244,11 @@ def figure(path, table_rows, fit, measure):
                       f"eta^({fit.b:.3g} ± {fit.b_err:.2g})")
     ax.set(xscale="log", yscale="log", xlabel="eta [-]", ylabel="h_s [MPa]",
            title=f"h_s versus eta, pressure = {SHORT[measure]}")
+    low, high = ax.get_xlim()
+    ax.set_xticks([t for t in (0.02, 0.05, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 2.0)
+                   if low <= t <= high])
     ax.xaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
-    ax.xaxis.set_minor_formatter(matplotlib.ticker.ScalarFormatter())
+    ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
     ax.legend(fontsize=7)
     return save(fig, path)
 
