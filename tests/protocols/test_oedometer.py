@@ -230,6 +230,23 @@ def test_small_oedometer_ladder(oedometer):
     assert "level 4 (unloading)" in (out / "run.log").read_text()
 
 
+def test_the_figure_leaves_out_a_level_the_piston_never_reached(oedometer):
+    """A level that ended before the piston reached the grains (sigma_top = 0, as after a
+    settling cut short by max_time) is drawn without breaking the Bauer curve's
+    logarithmic range: the figure is made from the other levels."""
+    from graindyn.config.build import protocol
+    from graindyn.config.load import load
+    from graindyn.output.rundir import RunDirectory
+    from graindyn.runner import draw
+
+    out, results = oedometer
+    unreached = copy.deepcopy(results)
+    unreached["ladder"][0].update(sigma_top_Pa=0.0, trace_Pa=0.0)
+    (path,) = [p for p in draw(RunDirectory(out), protocol(load(out / "config.toml")),
+                               unreached) if p.name == "oedometer.png"]
+    assert path.stat().st_size > 10_000
+
+
 def test_small_oedometer_under_the_massive_piston_reaches_every_level(tmp_path):
     """loading = piston: the plate of the sample's mass, pushed by p A, comes to rest at
     every level of the ladder carrying p A, and e falls while loading."""

@@ -209,8 +209,9 @@ class Oedometer(Protocol):
                                 marker, color=color, mfc="none" if branch == "unloading"
                                 else color, label=f"{measure} ({branch})")
                 fit = results["bauer"][measure]
-                if "h_s_Pa" in fit:
-                    p = np.geomspace(min(r[key] for r in rows), max(r[key] for r in rows))
+                loaded = [r[key] for r in rows if r[key] > 0]   # a level the piston reached
+                if "h_s_Pa" in fit and loaded:
+                    p = np.geomspace(min(loaded), max(loaded))
                     ax.plot(p / 1e6, fit["e0"] * np.exp(-(p / fit["h_s_Pa"]) ** fit["eta"]),
                             "-", color=color, label=f"Bauer, {measure}: h_s = "
                             f"{fit['h_s_Pa'] / 1e6:.3g} MPa, eta = {fit['eta']:.3g}")
