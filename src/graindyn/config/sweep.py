@@ -61,9 +61,10 @@ class VarySection(Section):
     def _unique(cls, values):
         seen = []
         for v in values:
-            if v in seen:
+            key = (isinstance(v, bool), v)     # True is not the value 1 (the field says so)
+            if key in seen:
                 raise ValueError(f"value {v!r} is listed twice")
-            seen.append(v)
+            seen.append(key)
         return values
 
     @model_validator(mode="after")
