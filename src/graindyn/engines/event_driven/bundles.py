@@ -48,12 +48,15 @@ class Calendar(NamedTuple):
 
 class Cells(NamedTuple):
     """The cell grid: lo (3,) [m] its lowest corner, size (3,) [m] the cells' sides,
-    count (3,) int64 cells per axis;  cell (N,) each grain's cell (x fastest);  head (C,)
-    the first grain of each cell, next, prev (N,) the doubly linked lists (-1: none)."""
+    count (3,) int64 cells per axis;  cell (N,) each grain's cell (x fastest) and coords
+    (N, 3) its place along each axis (kept beside the index, so that no event divides
+    integers to find it);  head (C,) the first grain of each cell, next, prev (N,) the
+    doubly linked lists (-1: none)."""
     lo: np.ndarray
     size: np.ndarray
     count: np.ndarray
     cell: np.ndarray
+    coords: np.ndarray
     head: np.ndarray
     next: np.ndarray
     prev: np.ndarray

@@ -199,7 +199,7 @@ class EventDriven:
             if not w.periodic_flag[d]:
                 size[d] = max(size[d], side)
         n = s.n
-        return Cells(lo, size, counts, np.zeros(n, np.int64),
+        return Cells(lo, size, counts, np.zeros(n, np.int64), np.zeros((n, 3), np.int64),
                      np.full(int(counts.prod()), -1, np.int64), np.full(n, -1, np.int64),
                      np.full(n, -1, np.int64))
 

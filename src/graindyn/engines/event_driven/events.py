@@ -196,21 +196,12 @@ def _schedule(cal, i, next_time, kind, partner, count, cross_time, face):
 
 
 @block_body
-def _coords(cells, c):
-    nx_ = cells.count[0]
-    ny_ = cells.count[1]
-    return c % nx_, (c // nx_) % ny_, c // (nx_ * ny_)
-
-
-@block_body
 def _crossing(g, cells, box, i, straight):
     """The time [s] from now until grain i leaves its cell, and through which face."""
-    cx, cy, cz = _coords(cells, cells.cell[i])
-    coords = (cx, cy, cz)
     best = math.inf
     face = -1
     for axis in range(3):
-        lo, hi = _cell_bounds(cells, box, coords[axis], axis)
+        lo, hi = _cell_bounds(cells, box, cells.coords[i, axis], axis)
         t, up = flight.boundary_time(g.positions[i, axis], g.velocities[i, axis],
                                      0.0 if straight else g.gravity[axis], lo, hi)
         if t < best:
@@ -289,10 +280,9 @@ def predict(g, cal, cells, walls, box, clock, i, now, straight):
         _schedule(cal, i, math.inf, NONE, -1, 0, math.inf, -1)
         return
     crossing, face = _crossing(g, cells, box, i, straight)
-    cx, cy, cz = _coords(cells, cells.cell[i])
-    fx, nx = _cell_range(cells, box, cx, 0)
-    fy, ny = _cell_range(cells, box, cy, 1)
-    fz, nz = _cell_range(cells, box, cz, 2)
+    fx, nx = _cell_range(cells, box, cells.coords[i, 0], 0)
+    fy, ny = _cell_range(cells, box, cells.coords[i, 1], 1)
+    fz, nz = _cell_range(cells, box, cells.coords[i, 2], 2)
     best, partner, count = _scan_pairs(g, cells, box, i, now, fx, nx, fy, ny, fz, nz,
                                        math.inf, -1, 0, straight)
     kind = PAIR if partner >= 0 else NONE
@@ -315,15 +305,13 @@ def predict_crossed(g, cal, cells, walls, box, clock, i, now, face, straight):
         best = cal.next_time[i] - now
         partner = cal.partner[i]
         count = cal.count[i]
-    axis = face // 2
-    cx, cy, cz = _coords(cells, cells.cell[i])
-    coords = (cx, cy, cz)
-    layer = coords[axis] + (1 if face % 2 == 1 else -1)
+    axis = face >> 1
+    layer = cells.coords[i, axis] + (1 if face & 1 else -1)
     n = cells.count[axis]
     if box.flag[axis] or 0 <= layer < n:
-        fx, nx = _cell_range(cells, box, cx, 0)
-        fy, ny = _cell_range(cells, box, cy, 1)
-        fz, nz = _cell_range(cells, box, cz, 2)
+        fx, nx = _cell_range(cells, box, cells.coords[i, 0], 0)
+        fy, ny = _cell_range(cells, box, cells.coords[i, 1], 1)
+        fz, nz = _cell_range(cells, box, cells.coords[i, 2], 2)
         first = (layer + n) % n if _wrapped(cells, box, axis) else layer
         if axis == 0:
             fx, nx = first, 1
@@ -479,24 +467,29 @@ def _wall_collision(g, walls, tables, clock, counters, i, w, now):
 def _cross(g, cells, box, i, face):
     """Move grain i into the cell beyond ``face`` of its own, shifting its coordinate by
     the period when it wraps around a periodic axis."""
-    axis = face // 2
+    axis = face >> 1
     stride = 1
     for a in range(axis):
         stride *= cells.count[a]
     n = cells.count[axis]
     c = cells.cell[i]
-    k = (c // stride) % n
-    if face % 2 == 1:
+    k = cells.coords[i, axis]
+    if face & 1:
         if k == n - 1:
             g.positions[i, axis] -= box.length[axis]
             c -= (n - 1) * stride
+            k = 0
         else:
             c += stride
+            k += 1
     elif k == 0:
         g.positions[i, axis] += box.length[axis]
         c += (n - 1) * stride
+        k = n - 1
     else:
         c -= stride
+        k -= 1
+    cells.coords[i, axis] = k
     _unlink(cells, i)
     _link(cells, i, c)
 
@@ -581,6 +574,7 @@ def bin_grains(g, cells, box):
                 g.positions[i, axis] = x
             k = int(math.floor((x - cells.lo[axis]) / cells.size[axis]))
             k = min(max(k, 0), cells.count[axis] - 1)
+            cells.coords[i, axis] = k
             c += k * stride
             stride *= cells.count[axis]
         _link(cells, i, c)
@@ -594,10 +588,9 @@ def _close_pairs(g, cells, box, slack, out_i, out_j, out_gap):
     nx_ = cells.count[0]
     ny_ = cells.count[1]
     for i in range(g.radii.size):
-        c = cells.cell[i]
-        fx, nx = _cell_range(cells, box, c % nx_, 0)
-        fy, ny = _cell_range(cells, box, (c // nx_) % ny_, 1)
-        fz, nz = _cell_range(cells, box, c // (nx_ * ny_), 2)
+        fx, nx = _cell_range(cells, box, cells.coords[i, 0], 0)
+        fy, ny = _cell_range(cells, box, cells.coords[i, 1], 1)
+        fz, nz = _cell_range(cells, box, cells.coords[i, 2], 2)
         for a in range(nz):
             z = _image(cells, box, fz + a, 2)[0]
             for b in range(ny):
