@@ -5,7 +5,9 @@ moved from one backend to the other; ensembles, the run and sweep commands, and 
 silo protocol swept as one ensemble.  Needs numba-cuda (the test extra has it); no GPU
 is used.  The simulator is slow and single-threaded: every job of this module starts
 at once, in its own process (start_early), so that they share the machine's cores;
-each test then waits for its own."""
+each test then waits for its own.  With GRAINDYN_GPU=device the same jobs run on the
+machine's GPU instead of the simulator, and the same checks judge them
+(benchmarks/gpu_session.py)."""
 import atexit
 import importlib.util
 import json
@@ -64,7 +66,9 @@ def start_early():
     if _STARTED or importlib.util.find_spec("numba_cuda") is None:
         return
     folder = pathlib.Path(tempfile.mkdtemp(prefix="cudasim-"))
-    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")
+    env = dict(os.environ)
+    if os.environ.get("GRAINDYN_GPU") != "device":
+        env["NUMBA_ENABLE_CUDASIM"] = "1"
     procs = {}
     for name, args in _jobs(folder).items():
         with open(folder / f"{name}.out", "w") as out, open(folder / f"{name}.err", "w") as err:
