@@ -32,7 +32,9 @@ The settled states come from ../shared/bench (``run_all.py`` prepares them with 
 which the GPU machine does not have): state_settle_10000.txt and state_oedo_280.txt in
 ``--states`` (default .devstate, a folder git ignores, carried to the machine).
 Packages the machine's image lacks travel as wheels in .whl (README of the device
-tool); benchmarks/gpu_session.sh installs them and calls this script.
+tool).  ``bash benchmarks/gpu_session.sh prepare`` makes both folders here;
+``bash benchmarks/gpu_session.sh`` on the machine installs the wheels and calls this
+script.
 
 ``--rehearse`` runs every stage here under the CUDA simulator with tiny sizes (a bed of
 280 grains, 2 members, 2 steps; the parity stage as CI runs it) to check the script
