@@ -171,11 +171,7 @@ def displacement2(i, dim, positions, reference_positions, periodic_flag, periodi
 
 
 @block_body
-def _correct_rows(lo, hi, integrator, stage, dt, started, dim, gravity, own, start,
-                  reverse_start, reverse_pairs, pair_force, pair_torque_j, forces, torques,
-                  masses, inertias, positions, reference_positions, velocities,
-                  angular_velocities, orientations, accelerations, angular_accelerations,
-                  fixed, periodic_flag, periodic_length, history, drift_next):
+def _correct_rows(lo, hi, integrator, stage, dt, started, dim, gravity, rows, drift_next):
     """gather_pairs and correct_grain for grains lo..hi-1, then, when ``drift_next``,
     the first drift of the next step (drift_grain, stage 0: one pass over the grains'
     arrays instead of two); returns max |r - r_ref| + max |v| dt + max |a| dt^2/2 over
@@ -183,7 +179,12 @@ def _correct_rows(lo, hi, integrator, stage, dt, started, dim, gravity, own, sta
     block, not per grain; the drifted grains' v and a no longer read: gather + correct
     + drift of the 280-grain bed 3.9 -> 3.7 us).  The
     pairs listed by the block's grains (from start[lo] on) and their wall contacts are
-    already in own (contacts._pair_block, _wall_block)."""
+    already in own (contacts._pair_block, _wall_block).  ``rows``: the arrays of
+    _correct_block's arguments from own to history, in that order."""
+    (own, start, reverse_start, reverse_pairs, pair_force, pair_torque_j, forces, torques,
+     masses, inertias, positions, reference_positions, velocities, angular_velocities,
+     orientations, accelerations, angular_accelerations, fixed, periodic_flag,
+     periodic_length, history) = rows
     owned_from = start[lo]
     top_d2 = 0.0
     top_v2 = 0.0
@@ -216,36 +217,34 @@ def _correct_block(lo, hi, integrator, stage, dt, started, dim, gravity, own, st
                    masses, inertias, positions, reference_positions, velocities,
                    angular_velocities, orientations, accelerations, angular_accelerations,
                    fixed, periodic_flag, periodic_length, history, drift_next):
-    """_correct_rows, compiled once as a serial function.  Velocity Verlet (the
-    default scheme) gets its own copy in 3D and in 2D for the steps whose pass does the
-    next drift (all but those that end a chunk or are checked), in which the
-    integrator, its single stage, the dimension and the drift are constants: the
-    dispatch on them folds away (about 40 us of the 330 us of this pass on a
-    10 000-grain bed, one thread), and so does the bound on the drift
-    (_correct_rows)."""
-    if integrator == VELOCITY_VERLET and drift_next:
-        # constants typed as the generic call's (no second compile of _correct_rows):
-        # LLVM folds them after inlining
-        if dim == 3:
+    """_correct_rows, compiled once as a serial function.  For the steps whose pass does
+    the next drift (all but those that end a chunk or are checked), the schemes of the
+    documents' experiments get copies of their own in which the integrator, the
+    dimension and the drift are constants, so that the dispatch on them folds away:
+    velocity Verlet (the default, Pérez's silo) in 3D and 2D (about 40 us of the 330 us
+    of this pass on a 10 000-grain bed, one thread) and gear3 (Karrech's cyclic
+    loading) in 3D (the 430-grain cyclic bed: gather + correct + drift 47.9 -> 16.6 us,
+    the whole step 107 -> 77 us); the same numbers to the bit (BENCHMARKS.md).  The
+    optimized velocity Verlet (Oquendo's oedometer) gained nothing from a copy of its
+    own (the 280-grain step 122 us either way)."""
+    rows = (own, start, reverse_start, reverse_pairs, pair_force, pair_torque_j, forces,
+            torques, masses, inertias, positions, reference_positions, velocities,
+            angular_velocities, orientations, accelerations, angular_accelerations, fixed,
+            periodic_flag, periodic_length, history)
+    # constants typed as the generic call's (no second compile of _correct_rows): LLVM
+    # folds them after inlining
+    if drift_next and dim == 3:
+        if integrator == VELOCITY_VERLET:
             return _correct_rows(lo, hi, np.int64(VELOCITY_VERLET), np.int64(0), dt, started,
-                                 np.int64(3), gravity, own, start, reverse_start,
-                                 reverse_pairs, pair_force, pair_torque_j, forces, torques,
-                                 masses, inertias, positions, reference_positions,
-                                 velocities, angular_velocities, orientations, accelerations,
-                                 angular_accelerations, fixed, periodic_flag,
-                                 periodic_length, history, np.bool_(True))
+                                 np.int64(3), gravity, rows, np.bool_(True))
+        if integrator == GEAR3:
+            return _correct_rows(lo, hi, np.int64(GEAR3), np.int64(0), dt, started,
+                                 np.int64(3), gravity, rows, np.bool_(True))
+    if drift_next and dim == 2 and integrator == VELOCITY_VERLET:
         return _correct_rows(lo, hi, np.int64(VELOCITY_VERLET), np.int64(0), dt, started,
-                             np.int64(2), gravity, own, start, reverse_start, reverse_pairs,
-                             pair_force, pair_torque_j, forces, torques, masses, inertias,
-                             positions, reference_positions, velocities, angular_velocities,
-                             orientations, accelerations, angular_accelerations, fixed,
-                             periodic_flag, periodic_length, history, np.bool_(True))
-    return _correct_rows(lo, hi, integrator, stage, dt, started, dim, gravity, own, start,
-                         reverse_start, reverse_pairs, pair_force, pair_torque_j, forces,
-                         torques, masses, inertias, positions, reference_positions,
-                         velocities, angular_velocities,
-                         orientations, accelerations, angular_accelerations, fixed,
-                         periodic_flag, periodic_length, history, drift_next)
+                             np.int64(2), gravity, rows, np.bool_(True))
+    return _correct_rows(lo, hi, integrator, stage, dt, started, dim, gravity, rows,
+                         drift_next)
 
 
 @parallel
