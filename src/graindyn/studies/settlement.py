@@ -105,7 +105,8 @@ TABLE1 = {
     "contact": {"normal": "hertz", "damping": "karrech", "tangential": "karrech"},
     "walls": {"material": "steel",
               "container": {"kind": "cylinder", "radius": 0.075, "height": 0.1}},
-    "engine": {"integrator": "gear3"},
+    # the spheres' angles act on nothing: not turning them saves about a tenth of a step
+    "engine": {"integrator": "gear3", "orientations": False},
     "protocol": {"kind": "cyclic", "insertion": "random", "packing_fraction": 0.05,
                  "criterion": "energy_ratio", "threshold": 1e-6, "max_time": 2.0,
                  "stress_amplitude": 14.15e3, "frequency": 50.0},
