@@ -263,3 +263,99 @@ def test_the_procedure_runs_on_the_quarter_model(tmp_path):
     assert jump["relaxed"] and jump["largest_overlap_after"] < 1e-2
     arrays, _, _, _ = checkpoint.read(out / "checkpoints" / checkpoint.LATEST)
     assert np.all(arrays["grains/positions"][:, :2] > 0.0)
+
+
+def test_a_jump_beyond_its_tolerance_is_undone_and_the_bed_computed_on(procedure):
+    """jump_tolerance = 1e-12 (no jump can pass) with k_i = 2, k = 3, h = 3 over 12
+    cycles, final_cycles = 3: cycles 1-5 computed, the jump 5 -> 8 checked on cycles
+    9-11 and undone (the bed back at cycle 5, the clock on by the 3 cycles spent), 6-8
+    computed, the jump 8 -> 9 (cut to leave 3 cycles) checked on 10-12 and undone,
+    9-12 computed: every cycle computed once in the end, both jumps listed as rejected
+    with their estimates, no file of an undone cycle or jump left behind."""
+    from graindyn.protocols.cyclic import residual_cycles
+
+    out, results = procedure(cycles=12, jump_tolerance=1e-12, final_cycles=3)
+    assert [r["cycle"] for r in results["cycles"]] == list(range(1, 13))
+    assert results["extrapolations"] == []
+    rejected = [(j["from_cycle"], j["to_cycle"], j["checked_at_cycle"])
+                for j in results["rejected_extrapolations"]]
+    assert rejected == [(5, 8, 11), (8, 9, 12)]
+    assert all(j["estimated_error"] > 1e-12 for j in results["rejected_extrapolations"])
+    period = 1 / 50.0
+    t0 = results["cycles"][0]["time_s"] - period
+    times = [r["time_s"] - t0 for r in results["cycles"]]
+    assert times[:5] == pytest.approx([period * c for c in range(1, 6)], abs=1e-5)
+    assert times[5:8] == pytest.approx([period * c for c in range(9, 12)], abs=1e-5)
+    assert times[8:] == pytest.approx([period * c for c in range(15, 19)], abs=1e-5)
+    assert residual_cycles(out) == list(range(1, 13))
+    assert not list((out / "relaxations").glob("*.npz"))
+    assert not (out / "procedure" / "before_jump.npz").exists()
+
+
+def test_a_jump_within_its_tolerance_is_kept_with_its_estimate(procedure):
+    """jump_tolerance = 1e9 (every jump passes), k_i = 2, k = 3, h = 3 over 12 cycles,
+    final_cycles = 3: the jump 5 -> 8 of the procedure without the check (cycles 9-11
+    its window, no room for another), the same cycles to the bit, the jump with the
+    rate it extrapolated, the rate measured after it and the estimated error
+    h |r_after - r_jump| / 2 over the settlement at its end."""
+    _, checked = procedure(cycles=12, jump_tolerance=1e9, final_cycles=3)
+    _, plain = procedure(cycles=12, final_cycles=3)
+    assert checked["cycles"] == plain["cycles"]
+    assert [(j["from_cycle"], j["to_cycle"]) for j in checked["extrapolations"]] == \
+        [(j["from_cycle"], j["to_cycle"]) for j in plain["extrapolations"]] == [(5, 8)]
+    assert checked["rejected_extrapolations"] == []
+    for j in checked["extrapolations"]:
+        h = j["to_cycle"] - j["from_cycle"]
+        assert j["estimated_error"] == pytest.approx(
+            h * abs(j["measured_rate_m_per_cycle"] - j["extrapolated_rate_m_per_cycle"])
+            / (2 * j["settlement_m"]))
+        assert j["extrapolated_rate_m_per_cycle"] > 0
+
+
+@pytest.mark.parametrize("change, message", [
+    (dict(jump_tolerance=-0.1), "jump_tolerance"),
+    (dict(jump_tolerance=0.01, cycles=20, final_cycles=2), "final_cycles = 2 must be at "
+                                                            "least"),
+])
+def test_bad_jump_tolerances_are_refused(change, message):
+    data = copy.deepcopy(SMALL)
+    data["protocol"].update({"extrapolation": "linear", "initial_cycles": 2,
+                             "computed_cycles": 3, "extrapolated_cycles": 3, **change})
+    with pytest.raises(ConfigError, match=message):
+        validate(data)
+
+
+def test_a_run_stopped_before_its_jump_is_checked_resumes_to_the_same_numbers(
+        procedure, tmp_path):
+    """SIGTERM just after the first jump, before the cycles that check it are done, then
+    --resume: the bed kept before the jump comes back from the run folder, and the run
+    ends with the same cycles, rejected jumps and residuals as the one not stopped."""
+    finished, results = procedure(cycles=12, jump_tolerance=1e-12, final_cycles=3)
+    data = copy.deepcopy(SMALL)
+    data["protocol"].update({"cycles": 12, "extrapolation": "shenton", "initial_cycles": 2,
+                             "computed_cycles": 3, "extrapolated_cycles": 3,
+                             "jump_tolerance": 1e-12, "final_cycles": 3})
+    data["output"]["figures"] = False
+    (tmp_path / "run.toml").write_text(tomli_w.dumps(data))
+    run = tmp_path / "run"
+    proc = subprocess.Popen([sys.executable, "-m", "graindyn", "run", str(tmp_path / "run.toml"),
+                             "--out", str(run)], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+    log = run / "run.log"
+    deadline = time.time() + 600
+    while time.time() < deadline and not (log.exists() and "extrapolated" in log.read_text()):
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGTERM)
+    out, _ = proc.communicate(timeout=600)
+    assert proc.returncode == 128 + signal.SIGTERM, out
+    _, meta, _, _ = checkpoint.read(run / "checkpoints" / "checkpoint.h5")
+    assert "unchecked" in meta["protocol"]["states"]["cycles"]
+    assert (run / "procedure" / "before_jump.npz").exists()
+    proc = subprocess.run([sys.executable, "-m", "graindyn", "run", "--resume", str(run)],
+                          capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    resumed = json.loads((run / "results.json").read_text())
+    expected = json.loads((finished / "results.json").read_text())
+    for key in ("cycles", "extrapolations", "rejected_extrapolations"):
+        assert resumed[key] == expected[key], key
+    np.testing.assert_array_equal(load_residuals(run), load_residuals(finished))

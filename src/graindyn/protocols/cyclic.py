@@ -24,7 +24,14 @@ the run directory (``load_residuals`` reads them back as one (cycles, N, 3) arra
 training data of analysis.settlement).  With the sequential procedure
 (``extrapolation``) the overlaps of every contact before and after each relaxation go
 to relaxations/to_cycle_NNNNNN.npz (``load_overlaps``), drawn in relaxation.png
-(``relaxation_figure``, Karrech Fig. 9).
+(``relaxation_figure``, Karrech Fig. 9).  With ``jump_tolerance`` each jump is checked
+on the cycles computed after it, the way an adaptive ODE solver checks a step: the
+settlement rate r_after measured there against the rate r_jump the jump extrapolated,
+h |r_after - r_jump| / 2 the difference between the forward jump and a trapezoidal
+one; a jump whose estimate exceeds the tolerance (a fraction of the settlement) is
+undone and the bed computed on instead.  This catches a jump made from a window still
+in the bed's transient, whose end the cycles computed so far cannot show
+(docs/settlement.md).
 
 Two modes (Karrech Sec. 5.3).  Fully confined (``plate_fraction = 1``, the default): the
 plate is an infinite plane over the whole top of the sample.  Partially confined
@@ -50,6 +57,7 @@ centred on the planes (a disk on the cylinder's axis), and its area, the stress'
 sigma_plate's, is the share of it on the grains' side, fraction^2 times that part's
 cross-section.
 """
+import json
 import pathlib
 from typing import Literal
 
@@ -66,6 +74,7 @@ from .phases import SettleSettings, preparation
 PLATE = "plate"
 PARK = 100.0
 RELAXATIONS = "relaxations"     # the folder of the overlaps before and after each relaxation
+PHASE_STATE = "phase_state"     # the phase's state beside the engine's arrays before a jump
 
 
 class CyclicSettings(SettleSettings):
@@ -141,6 +150,17 @@ class CyclicSettings(SettleSettings):
         "radii [-] (analysis.settlement.smooth_increments: a Gaussian of that width over "
         "the grains within three of it, mirror images across the symmetry planes); 0: "
         "every grain moved by its own fitted trend (Karrech); >= 0", ge=0)
+    jump_tolerance: Float = _f(
+        0.0, "the largest settlement error a jump may make, over the settlement at its "
+        "end [-]: each jump is checked once the window after it has been computed, its "
+        "error estimated as h |r_after - r_jump| / 2 (r_jump the plate's settlement rate "
+        "the jump extrapolated at its end, r_after the rate the window measures: the "
+        "forward jump against a trapezoidal one, as an adaptive ODE solver estimates its "
+        "step's error); a jump above the tolerance is undone, the bed put back as it was "
+        "before it (the clock running on), and the window slides on computed_cycles "
+        "cycles before the same h is tried again.  Needs final_cycles >= restart_cycles "
+        "+ computed_cycles, so that the last jump is checked too; 0: every jump kept "
+        "(Karrech); >= 0", ge=0)
     keep_contacts: bool = _f(False, "the contacts still touching after an extrapolation and "
                              "its relaxation keep their history (tangential springs); "
                              "false: every contact starts unloaded (relocation)")
@@ -181,6 +201,13 @@ class Cyclic(Protocol):
                 f"protocol.final_cycles = {settings.final_cycles} leaves no cycle to "
                 f"extrapolate: initial_cycles + final_cycles must be below cycles = "
                 f"{settings.cycles}")
+        if settings.extrapolation != "none" and settings.jump_tolerance > 0 \
+                and settings.final_cycles < settings.restart_cycles + settings.computed_cycles:
+            raise ValueError(
+                f"protocol.jump_tolerance checks each jump on the computed cycles after it: "
+                f"final_cycles = {settings.final_cycles} must be at least restart_cycles + "
+                f"computed_cycles = {settings.restart_cycles + settings.computed_cycles}, "
+                f"so that the last jump is checked too")
 
     @classmethod
     def materials_named(cls, settings):
@@ -200,6 +227,7 @@ class Cyclic(Protocol):
         cycles = states["cycles"]
         out = {"deposition": states["settle"]["report"], "cycles": cycles["rows"],
                "extrapolations": cycles.get("jumps", []),
+               "rejected_extrapolations": cycles.get("rejected", []),
                "signal": "sigma(t) = static + amplitude (1 - cos(2 pi f (t - t0))) / 2"}
         out["plate_fraction"] = self.p.plate_fraction
         out["plate_area_m2"] = plate_area(self.p.plate_fraction, self.vessel)
@@ -248,6 +276,7 @@ class Cycles(ProtocolPhase):
     """The plate put on the bed, then ``cycles`` load cycles (module docstring)."""
 
     name = "cycles"
+    _before = None      # (engine snapshot, phase state) before an unchecked jump
 
     def duration(self):
         return self.p.cycles / self.p.frequency
@@ -276,8 +305,14 @@ class Cycles(ProtocolPhase):
             state.update(start_s=engine.time, plate_0=self._plate(engine, k), rows=[],
                          reference=s.positions.tolist())
             state.update(cycle=0, jumps=[])
-        while state["cycle"] < p.cycles:
-            if p.extrapolation != "none" and len(state.get("round", ())) > p.computed_cycles \
+        while True:
+            window_full = len(state.get("round", ())) > p.computed_cycles
+            if "unchecked" in state and window_full and not self._check_jump(engine, state,
+                                                                              k):
+                continue                                # undone: the bed as before it
+            if state["cycle"] >= p.cycles:
+                break
+            if p.extrapolation != "none" and window_full \
                     and state["cycle"] < p.cycles - p.final_cycles:
                 self._jump(engine, state, k)
                 continue
@@ -306,9 +341,9 @@ class Cycles(ProtocolPhase):
         keep_contacts the contacts that persist keep their tangential history), and a
         new round starting from there."""
         p = self.p
-        if not hasattr(engine, "relax"):
+        if not hasattr(engine, "relax") or not hasattr(engine, "rewind"):
             raise ValueError("the cyclic procedure needs an engine that can relax its "
-                             "grains (the soft engine)")
+                             "grains and rewind them (the soft engine)")
         records = state["round"]
         period = 1.0 / p.frequency
         first = state["cycle"] - p.computed_cycles
@@ -326,12 +361,18 @@ class Cycles(ProtocolPhase):
         for name, values in (("grains", grains), ("plate", plates)):
             trend = fit_residual(values - values[0], times, law)
             moved[name] = values[0] + trend.extrapolate(end)
+            if name == "plate":     # where the trend has the plate a cycle before the end
+                last_cycle = values[0] + trend.extrapolate(end - period)
         if p.smoothing > 0:
             s = engine.state
             last = grains[-1]
             moved["grains"] = last + smooth_increments(
                 last, moved["grains"] - last, p.smoothing * float(np.mean(s.radii)),
                 planes=[(plane.index, plane.at) for plane in self.vessel.symmetry])
+        if p.jump_tolerance > 0:
+            self._keep_before_jump(engine, state)
+        up = self.vessel.dim - 1
+        rate = float(last_cycle[0, up] - moved["plate"][0, up])     # its descent [m/cycle]
         held = engine.state.fixed != 0
         engine.place_wall(k, moved["plate"][0])
         result = engine.relax(fixed=held | self._frontier(engine, k) if p.hold_frontier
@@ -352,8 +393,11 @@ class Cycles(ProtocolPhase):
                 "contacts_after": result.overlaps_after.count,
                 "relaxation_iterations": result.iterations, "relaxed": result.converged,
                 "functional_before_J": result.functional_before,
-                "functional_after_J": result.functional_after}
+                "functional_after_J": result.functional_after,
+                "extrapolated_rate_m_per_cycle": rate}
         state["jumps"].append(jump)
+        if p.jump_tolerance > 0:
+            state["unchecked"] = len(state["jumps"]) - 1
         self._save_residual(engine, state)
         self._save_overlaps(result, jump)
         state["round"] = [self._round_record(engine, k)] if p.restart_cycles == 0 else []
@@ -363,6 +407,88 @@ class Cycles(ProtocolPhase):
             f"settlement {1e3 * jump['settlement_m']:.4g} mm; relaxed in "
             f"{result.iterations} iterations, largest overlap / radius "
             f"{jump['largest_overlap_before']:.3g} -> {jump['largest_overlap_after']:.3g}")
+
+    def _check_jump(self, engine, state, k):
+        """Check the last jump on the window computed after it (jump_tolerance): its
+        settlement error estimated as h |r_after - r_jump| / 2 over the settlement at
+        its end, r_after the least-squares slope of the plate's descent over the
+        window's cycles [m per cycle], r_jump the rate the extrapolation had at the
+        jump's end.  Within the tolerance the jump is kept (True); beyond it the bed,
+        the phase's records and files go back to what they were before the jump
+        (engine.rewind: the clock runs on by whole cycles, so the load's phase is the
+        same), the rejected jump is listed in state["rejected"], and the window slides
+        on: computed_cycles more cycles before the same h is tried again (False)."""
+        p = self.p
+        jump = state["jumps"][state["unchecked"]]
+        up = self.vessel.dim - 1
+        plates = np.array([r["plate"][up] for r in state["round"]])
+        r_after = -float(np.polyfit(np.arange(plates.size), plates, 1)[0])
+        h = jump["to_cycle"] - jump["from_cycle"]
+        error = h * abs(r_after - jump["extrapolated_rate_m_per_cycle"]) \
+            / (2.0 * abs(jump["settlement_m"]))
+        jump.update(measured_rate_m_per_cycle=r_after, estimated_error=error,
+                    checked_at_cycle=state["cycle"])
+        del state["unchecked"]
+        if error <= p.jump_tolerance:
+            self._forget_before_jump()
+            self.protocol.log(f"jump {jump['from_cycle']} -> {jump['to_cycle']} kept: "
+                              f"estimated error {error:.3g}")
+            return True
+        arrays, before = self._before_jump()
+        for name, folder in (("cycle", "residuals"), ("to_cycle", RELAXATIONS)):
+            if self.protocol.folder is not None:
+                for f in (pathlib.Path(self.protocol.folder) / folder).glob(f"{name}_*.np*"):
+                    if int(f.stem.removeprefix(f"{name}_")) > jump["from_cycle"]:
+                        f.unlink()
+        engine.rewind(arrays)
+        rejected = state.get("rejected", []) + [jump]
+        state.clear()
+        state.update(before, rejected=rejected)
+        state["round"] = state["round"][-1:]
+        state["window_opens"] = state["cycle"] + 1
+        self._forget_before_jump()
+        self.protocol.log(f"jump {jump['from_cycle']} -> {jump['to_cycle']} undone: "
+                          f"estimated error {error:.3g} > {p.jump_tolerance:g} (rate "
+                          f"{1e3 * jump['extrapolated_rate_m_per_cycle']:.3g} mm a cycle "
+                          f"extrapolated, {1e3 * r_after:.3g} measured after it)")
+        return False
+
+    def _before_jump_file(self):
+        """Where the bed before an unchecked jump is kept (None without a run folder)."""
+        if self.protocol.folder is None:
+            return None
+        return pathlib.Path(self.protocol.folder) / "procedure" / "before_jump.npz"
+
+    def _keep_before_jump(self, engine, state):
+        """Keep the engine's snapshot and the phase's state before a jump, in memory and
+        (for a resumed run) in the run folder, until the jump is checked."""
+        arrays = engine.snapshot()
+        before = json.loads(json.dumps(state))
+        self._before = arrays, before
+        path = self._before_jump_file()
+        if path is not None:
+            path.parent.mkdir(exist_ok=True)
+            partial = path.with_suffix(".partial.npz")
+            np.savez(partial, **arrays, **{PHASE_STATE: np.array(json.dumps(before))})
+            partial.replace(path)
+
+    def _before_jump(self):
+        """(engine snapshot, phase state) kept before the unchecked jump."""
+        if self._before is None:
+            path = self._before_jump_file()
+            if path is None or not path.exists():
+                raise RuntimeError("the bed before the unchecked jump is lost: "
+                                   f"{path} is missing")
+            with np.load(path) as data:
+                arrays = {name: data[name] for name in data.files if name != PHASE_STATE}
+                self._before = arrays, json.loads(str(data[PHASE_STATE]))
+        return self._before
+
+    def _forget_before_jump(self):
+        self._before = None
+        path = self._before_jump_file()
+        if path is not None:
+            path.unlink(missing_ok=True)
 
     def _frontier(self, engine, k):
         """(N,) bool: the grains touching a wall of the container (not the plate)."""

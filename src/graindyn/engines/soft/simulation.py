@@ -582,6 +582,21 @@ class Simulation:
         self.state.time = self.time
         self.state.step = self.step
 
+    def rewind(self, arrays):
+        """Put the grains, walls and contacts of a ``snapshot`` back while the clock and
+        the step counter run on from where they are: the bed as it was, a later time.
+        A procedure that undoes what it did since the snapshot uses it, so that the
+        time series stay in time order; a wall motion that depends on time (a
+        sinusoid, a cyclic load) goes on from the phase it has now, which is the
+        snapshot's phase when the time between the two is a whole number of its
+        periods.  The energy accumulators come back with the snapshot."""
+        time, step, rebuilds = self.time, self.step, self.rebuilds
+        self.restore(arrays)
+        self.clock[loop.TIME] = time
+        self.counters[loop.STEP] = step
+        self.counters[loop.REBUILDS] = rebuilds
+        self.state.time, self.state.step = time, step
+
     # ------------------------------------------------------------------ contacts
     def memory_bytes(self):
         """Bytes held by the grain, pair and wall-contact arrays of this simulation (and
