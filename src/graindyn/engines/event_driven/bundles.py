@@ -32,7 +32,8 @@ class Calendar(NamedTuple):
     """Each grain's next events: next_time (N,) [s], kind (N,) (events.NONE ... RECHECK),
     partner (N,) (grain or wall), count (N,) the partner grain's collision counter when
     predicted, of its next collision;  cross_time (N,) [s] and face (N,) of its next cell
-    crossing;  time (N,) [s] the earlier of the two;  heap, key, where (N,) the calendar
+    crossing;  time (N,) [s] the earlier of the two;  heap, key, where, bucket, after,
+    before (N,), first (B + 1,), span (2,) [s] and cursor (2,): the queue of the events
     (calendar.py)."""
     time: np.ndarray
     next_time: np.ndarray
@@ -44,6 +45,12 @@ class Calendar(NamedTuple):
     heap: np.ndarray
     key: np.ndarray
     where: np.ndarray
+    bucket: np.ndarray
+    after: np.ndarray
+    before: np.ndarray
+    first: np.ndarray
+    span: np.ndarray
+    cursor: np.ndarray
 
 
 class Cells(NamedTuple):

@@ -36,7 +36,8 @@ from ..contact_dynamics.stepping import CONDITION, NAN, _stop
 from ..soft.energy import rigid_energies
 from . import events as ev
 from ..contact_dynamics.bundles import PeriodicBox
-from .bundles import Calendar, Cells, Grains, Tables, WallBundle
+from .bundles import Cells, Grains, Tables, WallBundle
+from .calendar import calendar_for
 from .collision import COLLAPSE
 from .flight import wall_displacement
 
@@ -137,11 +138,7 @@ class EventDriven:
         self.last_collision = np.full(n, -math.inf)
         self.local_time = np.full(n, state.time)
         self._wall_impulse = np.zeros((len(self.walls), 3))
-        self._calendar = Calendar(np.zeros(n), np.zeros(n), np.zeros(n, np.int64),
-                                  np.zeros(n, np.int64), np.zeros(n, np.int64),
-                                  np.zeros(n), np.zeros(n, np.int64),
-                                  np.zeros(n, np.int64), np.zeros(n),
-                                  np.zeros(n, np.int64))
+        self._calendar = calendar_for(n)
         self._place_walls()
 
     def _check_motion(self, k, kind):

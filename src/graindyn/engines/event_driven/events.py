@@ -29,7 +29,7 @@ import numpy as np
 from ..._jit import block_body, driver
 from ..soft.integrators.rotation import rotate_quaternion
 from . import flight
-from .calendar import build_heap, reschedule
+from .calendar import build, front, reschedule
 from .collision import TC as TC_MODEL, collision_impulse, contact_velocity, restitution_now
 
 NONE, PAIR, WALL, RECHECK = 0, 1, 2, 3
@@ -192,7 +192,7 @@ def _schedule(cal, i, next_time, kind, partner, count, cross_time, face):
     cal.cross_time[i] = cross_time
     cal.face[i] = face
     cal.time[i] = min(next_time, cross_time)
-    reschedule(cal.heap, cal.key, cal.where, i, cal.time[i])
+    reschedule(cal, i, cal.time[i])
 
 
 @block_body
@@ -513,7 +513,7 @@ def _event_loop(g, cal, cells, walls, box, tables, clock, counters, end, straigh
     """run_events with ``straight`` a constant."""
     last = -math.inf
     while True:
-        i = cal.heap[0]
+        i = front(cal)
         now = cal.key[0]
         if not now < end:
             return DONE
@@ -633,6 +633,7 @@ def predict_all(g, cal, cells, walls, box, clock):
     now = clock[TIME]
     for i in range(g.radii.size):
         cal.time[i] = math.inf
-    build_heap(cal.heap, cal.key, cal.where, cal.time)
+    build(cal, now)
     for i in range(g.radii.size):
         predict(g, cal, cells, walls, box, clock, i, now, np.bool_(False))
+    build(cal, now)     # again, its buckets sized by the events predicted
