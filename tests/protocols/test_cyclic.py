@@ -281,6 +281,7 @@ def test_a_jump_beyond_its_tolerance_is_undone_and_the_bed_computed_on(procedure
                 for j in results["rejected_extrapolations"]]
     assert rejected == [(5, 8, 11), (8, 9, 12)]
     assert all(j["estimated_error"] > 1e-12 for j in results["rejected_extrapolations"])
+    assert [j["next_h"] for j in results["rejected_extrapolations"]] == [1, 1]  # 3/5, 1/5
     period = 1 / 50.0
     t0 = results["cycles"][0]["time_s"] - period
     times = [r["time_s"] - t0 for r in results["cycles"]]
@@ -293,13 +294,16 @@ def test_a_jump_beyond_its_tolerance_is_undone_and_the_bed_computed_on(procedure
 
 
 def test_a_jump_within_its_tolerance_is_kept_with_its_estimate(procedure):
-    """jump_tolerance = 1e9 (every jump passes), k_i = 2, k = 3, h = 3 over 12 cycles,
-    final_cycles = 3: the jump 5 -> 8 of the procedure without the check (cycles 9-11
-    its window, no room for another), the same cycles to the bit, the jump with the
+    """jump_tolerance = 1e9 (every jump passes), k_i = 2, k = 3, h = 3 growing twofold
+    over 12 cycles, final_cycles = 3: the jump 5 -> 8 of the procedure without the
+    check (cycles 9-11 its window, no room for another), the same cycles to the bit,
+    the next h grown by extrapolated_growth (the controller's own factor is far
+    larger), the jump with the
     rate it extrapolated, the rate measured after it and the estimated error
     h |r_after - r_jump| / 2 over the settlement at its end."""
-    _, checked = procedure(cycles=12, jump_tolerance=1e9, final_cycles=3)
-    _, plain = procedure(cycles=12, final_cycles=3)
+    _, checked = procedure(cycles=12, jump_tolerance=1e9, final_cycles=3,
+                           extrapolated_growth=2.0)
+    _, plain = procedure(cycles=12, final_cycles=3, extrapolated_growth=2.0)
     assert checked["cycles"] == plain["cycles"]
     assert [(j["from_cycle"], j["to_cycle"]) for j in checked["extrapolations"]] == \
         [(j["from_cycle"], j["to_cycle"]) for j in plain["extrapolations"]] == [(5, 8)]
@@ -310,6 +314,7 @@ def test_a_jump_within_its_tolerance_is_kept_with_its_estimate(procedure):
             h * abs(j["measured_rate_m_per_cycle"] - j["extrapolated_rate_m_per_cycle"])
             / (2 * j["settlement_m"]))
         assert j["extrapolated_rate_m_per_cycle"] > 0
+        assert j["next_h"] == 2 * h         # within the tolerance: grown by at most 2
 
 
 @pytest.mark.parametrize("change, message", [

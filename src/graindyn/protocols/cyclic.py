@@ -58,6 +58,7 @@ sigma_plate's, is the share of it on the grains' side, fraction^2 times that par
 cross-section.
 """
 import json
+import math
 import pathlib
 from typing import Literal
 
@@ -75,6 +76,7 @@ PLATE = "plate"
 PARK = 100.0
 RELAXATIONS = "relaxations"     # the folder of the overlaps before and after each relaxation
 PHASE_STATE = "phase_state"     # the phase's state beside the engine's arrays before a jump
+SAFETY, SHRINK = 0.9, 0.2       # the jump controller's safety factor and its largest cut
 
 
 class CyclicSettings(SettleSettings):
@@ -158,7 +160,9 @@ class CyclicSettings(SettleSettings):
         "forward jump against a trapezoidal one, as an adaptive ODE solver estimates its "
         "step's error); a jump above the tolerance is undone, the bed put back as it was "
         "before it (the clock running on), and the window slides on computed_cycles "
-        "cycles before the same h is tried again.  Needs final_cycles >= restart_cycles "
+        "cycles before a jump is tried again; h is then chosen as such a solver chooses "
+        "its step, h 0.9 sqrt(tol / error), at most extrapolated_growth h after a kept "
+        "jump and at least h / 5 after an undone one.  Needs final_cycles >= restart_cycles "
         "+ computed_cycles, so that the last jump is checked too; 0: every jump kept "
         "(Karrech); >= 0", ge=0)
     keep_contacts: bool = _f(False, "the contacts still touching after an extrapolation and "
@@ -351,7 +355,8 @@ class Cycles(ProtocolPhase):
             times = period * np.arange(first, state["cycle"] + 1)
         else:
             times = period * np.arange(0, p.computed_cycles + 1)
-        planned = round(p.extrapolated_cycles * p.extrapolated_growth ** len(state["jumps"]))
+        planned = state["next_h"] if "next_h" in state else \
+            round(p.extrapolated_cycles * p.extrapolated_growth ** len(state["jumps"]))
         ahead = min(planned, p.cycles - p.final_cycles - state["cycle"])
         end = times[-1] + period * ahead
         law = p.extrapolation
@@ -417,7 +422,11 @@ class Cycles(ProtocolPhase):
         the phase's records and files go back to what they were before the jump
         (engine.rewind: the clock runs on by whole cycles, so the load's phase is the
         same), the rejected jump is listed in state["rejected"], and the window slides
-        on: computed_cycles more cycles before the same h is tried again (False)."""
+        on: computed_cycles more cycles before a shorter jump is tried (False).  The
+        next h is chosen as an adaptive solver chooses its step, the jump's error
+        taken to grow as h^2 (the forward jump's): h times 0.9 sqrt(tol / error),
+        at most extrapolated_growth times h after a kept jump, at least a fifth of h
+        after an undone one, and at least one cycle."""
         p = self.p
         jump = state["jumps"][state["unchecked"]]
         up = self.vessel.dim - 1
@@ -426,10 +435,14 @@ class Cycles(ProtocolPhase):
         h = jump["to_cycle"] - jump["from_cycle"]
         error = h * abs(r_after - jump["extrapolated_rate_m_per_cycle"]) \
             / (2.0 * abs(jump["settlement_m"]))
+        kept = error <= p.jump_tolerance
+        factor = SAFETY * math.sqrt(p.jump_tolerance / error) if error > 0 else math.inf
+        factor = min(p.extrapolated_growth, factor) if kept else max(SHRINK, factor)
         jump.update(measured_rate_m_per_cycle=r_after, estimated_error=error,
-                    checked_at_cycle=state["cycle"])
+                    checked_at_cycle=state["cycle"], next_h=max(1, round(h * factor)))
         del state["unchecked"]
-        if error <= p.jump_tolerance:
+        if kept:
+            state["next_h"] = jump["next_h"]
             self._forget_before_jump()
             self.protocol.log(f"jump {jump['from_cycle']} -> {jump['to_cycle']} kept: "
                               f"estimated error {error:.3g}")
@@ -443,7 +456,7 @@ class Cycles(ProtocolPhase):
         engine.rewind(arrays)
         rejected = state.get("rejected", []) + [jump]
         state.clear()
-        state.update(before, rejected=rejected)
+        state.update(before, rejected=rejected, next_h=jump["next_h"])
         state["round"] = state["round"][-1:]
         state["window_opens"] = state["cycle"] + 1
         self._forget_before_jump()
