@@ -4,10 +4,6 @@ grain's residual displacement is written at each cycle end."""
 import copy
 import json
 import math
-import signal
-import subprocess
-import sys
-import time
 
 import numpy as np
 import pytest
@@ -18,6 +14,8 @@ from graindyn.output import checkpoint
 from graindyn.output.rundir import Series
 from graindyn.protocols.cyclic import load_residuals
 from graindyn.runner import execute
+
+from cli_runs import cli, stop_when_logged
 
 RADIUS = 2.5e-3
 SMALL = {
@@ -108,21 +106,13 @@ def test_interrupted_cyclic_run_resumes_to_the_same_numbers(cyclic, tmp_path):
     finished, results = cyclic
     (tmp_path / "run.toml").write_text(tomli_w.dumps(SMALL))
     run = tmp_path / "run"
-    proc = subprocess.Popen([sys.executable, "-m", "graindyn", "run", str(tmp_path / "run.toml"),
-                             "--out", str(run)], stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True)
-    log = run / "run.log"
-    deadline = time.time() + 600
-    while time.time() < deadline and not (log.exists() and "cycle 1:" in log.read_text()):
-        time.sleep(0.02)
-    proc.send_signal(signal.SIGTERM)
-    out, _ = proc.communicate(timeout=600)
-    assert proc.returncode == 128 + signal.SIGTERM, out
+    stop_when_logged(cli("run", tmp_path / "run.toml", "--out", run), run / "run.log",
+                     "cycle 1:")
     _, meta, _, _ = checkpoint.read(run / "checkpoints" / "checkpoint.h5")
     assert 1 <= len(meta["protocol"]["states"]["cycles"]["rows"]) < 4
-    proc = subprocess.run([sys.executable, "-m", "graindyn", "run", "--resume", str(run)],
-                          capture_output=True, text=True, timeout=900)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
+    proc = cli("run", "--resume", run)
+    out, _ = proc.communicate(timeout=900)
+    assert proc.returncode == 0, out
     resumed = json.loads((run / "results.json").read_text())
     assert resumed["cycles"] == json.loads((finished / "results.json").read_text())["cycles"]
     np.testing.assert_array_equal(load_residuals(run), load_residuals(finished))
@@ -343,22 +333,14 @@ def test_a_run_stopped_before_its_jump_is_checked_resumes_to_the_same_numbers(
     data["output"]["figures"] = False
     (tmp_path / "run.toml").write_text(tomli_w.dumps(data))
     run = tmp_path / "run"
-    proc = subprocess.Popen([sys.executable, "-m", "graindyn", "run", str(tmp_path / "run.toml"),
-                             "--out", str(run)], stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True)
-    log = run / "run.log"
-    deadline = time.time() + 600
-    while time.time() < deadline and not (log.exists() and "extrapolated" in log.read_text()):
-        time.sleep(0.02)
-    proc.send_signal(signal.SIGTERM)
-    out, _ = proc.communicate(timeout=600)
-    assert proc.returncode == 128 + signal.SIGTERM, out
+    stop_when_logged(cli("run", tmp_path / "run.toml", "--out", run), run / "run.log",
+                     "extrapolated")
     _, meta, _, _ = checkpoint.read(run / "checkpoints" / "checkpoint.h5")
     assert "unchecked" in meta["protocol"]["states"]["cycles"]
     assert (run / "procedure" / "before_jump.npz").exists()
-    proc = subprocess.run([sys.executable, "-m", "graindyn", "run", "--resume", str(run)],
-                          capture_output=True, text=True, timeout=900)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
+    proc = cli("run", "--resume", run)
+    out, _ = proc.communicate(timeout=900)
+    assert proc.returncode == 0, out
     resumed = json.loads((run / "results.json").read_text())
     expected = json.loads((finished / "results.json").read_text())
     for key in ("cycles", "extrapolations", "rejected_extrapolations"):

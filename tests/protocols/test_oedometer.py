@@ -3,10 +3,6 @@ stress ladder, a small oedometer run checked for equilibrium and force balance, 
 interrupted oedometer resumed to the same numbers."""
 import copy
 import json
-import signal
-import subprocess
-import sys
-import time
 
 import numpy as np
 import pytest
@@ -20,12 +16,9 @@ from graindyn.output.rundir import Series
 from graindyn.protocols.oedometer import MIN_AT_REST, fit_ladder, ladder
 from graindyn.runner import execute
 
+from cli_runs import cli, stop_when_logged
 
 
-def cli(*args):
-    """``python -m graindyn ARGS`` as a subprocess."""
-    return subprocess.Popen([sys.executable, "-m", "graindyn", *map(str, args)],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
 SMALL = {
     "run": {"name": "small_oedometer", "seed": 3},
@@ -347,14 +340,8 @@ def test_interrupted_oedometer_resumes_to_the_same_numbers(oedometer, tmp_path):
     finished, results = oedometer
     (tmp_path / "run.toml").write_text(tomli_w.dumps(SMALL))
     run = tmp_path / "run"
-    proc = cli("run", tmp_path / "run.toml", "--out", run)
-    log = run / "run.log"
-    deadline = time.time() + 600
-    while time.time() < deadline and not (log.exists() and "level 0" in log.read_text()):
-        time.sleep(0.02)
-    proc.send_signal(signal.SIGTERM)
-    out, _ = proc.communicate(timeout=600)
-    assert proc.returncode == 128 + signal.SIGTERM, out
+    stop_when_logged(cli("run", tmp_path / "run.toml", "--out", run), run / "run.log",
+                     "level 0")
     _, meta, _, t = checkpoint.read(run / "checkpoints" / "checkpoint.h5")
     assert meta["protocol"]["states"]["load"]["level"] >= 1
     assert t < results["ladder"][-1]["time_s"]

@@ -1,10 +1,10 @@
 """A small deposition config shared by the run tests (about 10^4 steps)."""
 import copy
-import subprocess
-import sys
 
 import pytest
 import tomli_w
+
+from cli_runs import cli
 
 SMALL = {
     "run": {"name": "small", "seed": 3},
@@ -35,12 +35,6 @@ def write_config(tmp_path):
         path.write_text(tomli_w.dumps(data))
         return path
     return write
-
-
-def cli(*args, **kw):
-    """``python -m graindyn ARGS`` as a real subprocess (stdout and stderr merged)."""
-    return subprocess.Popen([sys.executable, "-m", "graindyn", *map(str, args)],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, **kw)
 
 
 @pytest.fixture(scope="session")

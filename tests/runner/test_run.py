@@ -1,8 +1,6 @@
 """Runs through the CLI: run directory contents, VTK files read back by meshio,
 interruption by SIGTERM and exact resume, checkpoint failures."""
 import json
-import signal
-import time
 import xml.etree.ElementTree as ET
 
 import h5py
@@ -15,7 +13,7 @@ from graindyn.cli import app
 from graindyn.engines.soft.gpu import unavailable
 from graindyn.output import checkpoint
 
-from .conftest import cli as _cli
+from cli_runs import cli as _cli, stop_when_logged
 
 runner = CliRunner()
 
@@ -77,14 +75,8 @@ def test_existing_run_directory_is_not_overwritten(finished):
 
 def test_sigterm_then_resume_gives_identical_numbers(finished, tmp_path):
     run = tmp_path / "run"
-    proc = _cli("run", finished / "config.toml", "--out", run, "--threads", "2")
-    log = run / "run.log"
-    deadline = time.time() + 600
-    while time.time() < deadline and not (log.exists() and "phase settle" in log.read_text()):
-        time.sleep(0.05)
-    proc.send_signal(signal.SIGTERM)
-    out, _ = proc.communicate(timeout=600)
-    assert proc.returncode == 128 + signal.SIGTERM, out
+    out = stop_when_logged(_cli("run", finished / "config.toml", "--out", run, "--threads",
+                                "2"), run / "run.log", "phase settle")
     assert "resume with" in out
     _, _, step, _ = checkpoint.read(run / "checkpoints" / "checkpoint.h5")
     final = json.loads((finished / "results.json").read_text())["steps"]

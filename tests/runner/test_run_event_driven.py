@@ -1,15 +1,12 @@
 """A run of the event-driven engine through the CLI, interrupted by SIGTERM and resumed:
 the same numbers as the uninterrupted run."""
-import signal
-import time
-
 import numpy as np
 import tomli_w
 
 from graindyn.config import load
 from graindyn.output import checkpoint
 
-from .conftest import cli
+from cli_runs import cli, stop_when_logged
 
 
 def _config(folder):
@@ -37,15 +34,8 @@ def test_sigterm_then_resume_gives_identical_numbers(tmp_path):
     assert proc.returncode == 0, out
 
     run = tmp_path / "run"
-    proc = cli("run", config, "--out", run, "--threads", "1")
-    log = run / "run.log"
-    deadline = time.time() + 600
-    while time.time() < deadline and not (log.exists() and "phase cool" in log.read_text()):
-        time.sleep(0.05)
-    time.sleep(0.5)
-    proc.send_signal(signal.SIGTERM)
-    out, _ = proc.communicate(timeout=600)
-    assert proc.returncode == 128 + signal.SIGTERM, out
+    stop_when_logged(cli("run", config, "--out", run, "--threads", "1"), run / "run.log",
+                     "phase cool", delay=0.5)
     _, _, step, t = checkpoint.read(run / "checkpoints" / "checkpoint.h5")
     assert 0 < t < 20.0, "the signal should land mid-run"
 

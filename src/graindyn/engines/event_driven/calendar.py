@@ -218,7 +218,12 @@ def _advance(cal):
     lists = cal.first.size - 1
     if c & (lists - 1) == 0:
         _sort_overflow(cal)
-    slot = c & (lists - 1)
+    _pour(cal, c & (lists - 1))
+
+
+@block_body
+def _pour(cal, slot):
+    """Every event of list ``slot`` into the heap."""
     grain = cal.first[slot]
     cal.first[slot] = -1
     while grain >= 0:
@@ -241,12 +246,7 @@ def _leap(cal):
         cal.cursor[CURRENT] = np.int64((earliest - cal.span[ORIGIN]) / cal.span[WIDTH]) - 1
         _sort_overflow(cal)
         return
-    grain = cal.first[lists]
-    cal.first[lists] = -1
-    while grain >= 0:
-        after = cal.after[grain]
-        _push(cal, grain, cal.time[grain])
-        grain = after
+    _pour(cal, lists)
 
 
 @block_body
