@@ -55,6 +55,7 @@ def test_full_dem_against_itself_is_exact_and_the_errors_are_finite(study):
                 "path_error", "gained_time_percent"):
         assert full[key] == 0.0, key
     assert full["speedup"] == 1.0 and full["cycles_computed"] == 8
+    assert all(r["undone_jumps"] == r["cycles_computed_again"] == 0 for r in runs.values())
     for name, r in runs.items():
         assert r["cycles"] == 8, name
         for key in ("settlement_error", "coordination_error", "configuration_error",
@@ -220,3 +221,17 @@ def test_procedure_settings_go_to_the_runs_and_leave_the_bed(study, tmp_path):
     assert procedure["protocol"]["smoothing"] == 2.0
     assert procedure["protocol"]["keep_contacts"] is True
     assert full["protocol"]["smoothing"] == 0.0 and full["protocol"]["keep_contacts"] is False
+
+
+def test_a_run_with_checked_jumps_counts_the_undone_ones(study, tmp_path):
+    """A procedure whose jumps all fail their check (jump_tolerance = 1e-12; k_i = 2,
+    k = 3, h = 3 over 12 cycles, final_cycles = 3): the jumps 5 -> 8 and 8 -> 9 undone,
+    the 3 + 3 cycles computed after them counted as computed again, and every one of
+    the 12 cycles computed in the end."""
+    out, _, _ = study
+    settings = {"cycles": 12, "extrapolation": "linear", "initial_cycles": 2,
+                "computed_cycles": 3, "extrapolated_cycles": 3, "final_cycles": 3,
+                "jump_tolerance": 1e-12}
+    record = run_from_bed(out / "bed", settings, tmp_path / "checked", echo=lambda *a: None)
+    assert (record["undone_jumps"], record["undone_cycles"]) == (2, 6)
+    assert (record["computed_cycles"], record["extrapolated_cycles"]) == (12, 0)

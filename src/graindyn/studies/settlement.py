@@ -382,14 +382,17 @@ def contact_coordination(positions, radii, free=None):
 def final_state(folder, results):
     """Measures of a finished study run at its last cycle N: cycle, settlement [m],
     coordination (contact_coordination of the final checkpoint), the residual file of
-    cycle N, the path, the numbers of computed and extrapolated cycles and the
-    relaxations' iterations and largest overlap over the radius after them."""
+    cycle N, the path, the numbers of computed and extrapolated cycles, of the jumps
+    undone by the check (jump_tolerance) and of the cycles computed after them, which
+    the run then computed again, and the relaxations' iterations and largest overlap
+    over the radius after them."""
     from ..output import checkpoint
 
     arrays, _, _, _ = checkpoint.latest(pathlib.Path(folder) / "checkpoints")
     path = settlement_path(results)
     cycle, settlement, source = path[-1]
     jumps = results.get("extrapolations", [])
+    undone = results.get("rejected_extrapolations", [])
     fixed = arrays.get("grains/fixed")
     return {"cycle": cycle, "settlement_m": settlement, "last_cycle": source,
             "coordination": contact_coordination(
@@ -400,6 +403,8 @@ def final_state(folder, results):
             "coordination_path": [[r["cycle"], r["coordination"]] for r in results["cycles"]],
             "computed_cycles": len(results["cycles"]),
             "extrapolated_cycles": sum(j["to_cycle"] - j["from_cycle"] for j in jumps),
+            "undone_jumps": len(undone),
+            "undone_cycles": sum(j["checked_at_cycle"] - j["to_cycle"] for j in undone),
             "relaxation_iterations": sum(j["relaxation_iterations"] for j in jumps),
             "largest_overlap_after": max((j["largest_overlap_after"] for j in jumps),
                                          default=None),
@@ -501,6 +506,8 @@ def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=Non
                      "extrapolated_cycles_h": s.get("extrapolated_cycles", ""),
                      "cycles": record["cycle"], "cycles_computed": record["computed_cycles"],
                      "cycles_extrapolated": record["extrapolated_cycles"],
+                     "undone_jumps": record.get("undone_jumps", 0),
+                     "cycles_computed_again": record.get("undone_cycles", 0),
                      "settlement_m": record["settlement_m"],
                      "coordination": record["coordination"],
                      "cpu_s": record["cpu_s"], "wall_s": record["wall_s"], **errors,
