@@ -28,7 +28,7 @@ def test_the_front_is_the_earliest_event_through_any_sequence(n, seed):
     cal.time[:] = rng.exponential(1.0, n)
     cal.time[rng.random(n) < 0.05] = math.inf
     build(cal, now)
-    for step in range(20 * n + 50):
+    for step in range(min(20 * n + 50, 6100)):    # the smaller ones wrap their lists
         i = front(cal)
         t = cal.key[0]
         assert (i, t) == earliest(cal.time), step
