@@ -363,6 +363,10 @@ def study_settlement(
         help="Full DEM runs of the bed with one grain moved by 1, 2, ... nm: how far "
         "apart two computations of the same bed land (the floor of every error).",
         min=0)] = 0,
+    procedure_replicas: Annotated[int, typer.Option(
+        "--procedure-replicas", help="Each procedure run repeated from the beds of the "
+        "first of these replicas and compared with full DEM of its own bed: the mean "
+        "error over the beds with its standard error (at most --replicas).", min=0)] = 0,
     quick: Annotated[bool, typer.Option(
         help="A 120-grain soft bed, 8 cycles, k_i = 2, k and h in 2, 3 (about a minute).")]
     = False,
@@ -398,7 +402,7 @@ def study_settlement(
             initial_cycles=initial_cycles, ks=k and _numbers(k, "--k"),
             hs=h and _numbers(h, "--h"), k_fixed=k_fixed, h_fixed=h_fixed,
             estimator=estimator, mode=mode, overrides=overrides, threads=threads, jobs=jobs,
-            replicas=replicas, echo=typer.echo)
+            replicas=replicas, procedure_replicas=procedure_replicas, echo=typer.echo)
     except (ConfigError, ValueError, FileExistsError) as err:
         _fail(err)
     except RunInterrupted as err:

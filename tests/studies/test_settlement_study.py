@@ -19,7 +19,8 @@ from graindyn.cli import app
 from graindyn.config.load import read_toml
 from graindyn.runner import RunInterrupted
 from graindyn.studies.settlement import (FULL, PARTIAL, QUICK, contact_coordination,
-                                         perturb, plan, run_from_bed,
+                                         ensemble, perturb, perturbation_of, plan,
+                                         reference_of, run_from_bed,
                                          run_settlement_study, set_dotted, study_config)
 
 
@@ -44,7 +45,8 @@ def test_the_study_writes_its_tables_and_figures(study):
     assert [r["run"] for r in rows] == list(summary["runs"])
     assert summary["families"] == {"k": ["shenton_ki2_k2_h2", "shenton_ki2_k3_h2"],
                                    "h": ["shenton_ki2_k3_h3"],
-                                   "replica": ["full_dem_replica_1"]}
+                                   "replica": ["full_dem_replica_1"],
+                                   "procedure_replica": []}
 
 
 def test_full_dem_against_itself_is_exact_and_the_errors_are_finite(study):
@@ -206,15 +208,18 @@ def test_contact_coordination_counts_overlapping_pairs():
 
 def test_procedure_settings_go_to_the_runs_and_leave_the_bed(study, tmp_path):
     """--set of the procedure's own settings (smoothing, keep_contacts, the relaxation)
-    reaches every run of the procedure, not full DEM, and the bed is reused."""
+    reaches every run of the procedure, not full DEM, and the bed and full DEM are
+    reused."""
     out, _, _ = study
     shutil.copytree(out / "bed", tmp_path / "bed")
+    shutil.copytree(out / "runs" / FULL, tmp_path / "runs" / FULL)
     lines = []
     summary = run_settlement_study(tmp_path, quick=True, ks=(3,), hs=(3,), k_fixed=3,
                                    h_fixed=3, overrides={"protocol.smoothing": 2.0,
                                                          "protocol.keep_contacts": True},
                                    echo=lines.append)
     assert any("bed: reusing" in line for line in lines)
+    assert f"{FULL}: reusing the finished run" in lines
     assert list(summary["runs"]) == [FULL, "shenton_ki2_k3_h3"]
     procedure = read_toml(tmp_path / "runs" / "shenton_ki2_k3_h3" / "config.toml")
     full = read_toml(tmp_path / "runs" / FULL / "config.toml")
@@ -235,3 +240,79 @@ def test_a_run_with_checked_jumps_counts_the_undone_ones(study, tmp_path):
     record = run_from_bed(out / "bed", settings, tmp_path / "checked", echo=lambda *a: None)
     assert (record["undone_jumps"], record["undone_cycles"]) == (2, 6)
     assert (record["computed_cycles"], record["extrapolated_cycles"]) == (12, 0)
+
+
+def test_procedure_replicas_are_planned_against_full_dem_of_their_own_bed():
+    runs, families = plan(100, ks=(10,), hs=(20,), k_fixed=10, h_fixed=20, replicas=2,
+                          procedure_replicas=2)
+    name = "shenton_ki10_k10_h20"
+    assert families["procedure_replica"] == [f"{name}_replica_1", f"{name}_replica_2"]
+    assert runs[f"{name}_replica_2"] == runs[name]
+    assert perturbation_of(f"{name}_replica_2") == perturbation_of("full_dem_replica_2") \
+        == 2e-9
+    assert perturbation_of(name) == 0.0
+    assert reference_of(f"{name}_replica_2") == "full_dem_replica_2"
+    assert reference_of("full_dem_replica_2") == reference_of(name) == FULL
+    with pytest.raises(ValueError, match="between 0 and the replicas of full DEM"):
+        plan(100, replicas=1, procedure_replicas=2)
+
+
+def _record(path, cpu):
+    return {"path": [[c, s, "computed"] for c, s in path], "cycle": path[-1][0],
+            "settlement_m": path[-1][1], "cpu_s": cpu}
+
+
+def test_an_ensemble_averages_the_pairs_differences():
+    """Three beds: full DEM settles 1, 2, 3 mm per cycle; the procedure, reporting only
+    cycles 1 and 4 (a jump in between), lands 0.3, -0.1 and 0.4 mm off at cycle 4."""
+    cycles = (1, 2, 3, 4)
+    records = {}
+    off = (0.3e-3, -0.1e-3, 0.4e-3)
+    for r, rate in enumerate((1e-3, 2e-3, 3e-3)):
+        records[f"f{r}"] = _record([(c, rate * c) for c in cycles], 100.0)
+        records[f"p{r}"] = _record([(1, rate), (4, 4 * rate + off[r])], 25.0 + r)
+    e = ensemble(records, [(f"p{r}", f"f{r}") for r in range(3)])
+    mean_full = 4 * 2e-3
+    d = np.array(off)
+    assert e["cycle"] == 4
+    assert e["settlement_bias"] == pytest.approx(d.mean() / mean_full)
+    assert e["settlement_bias_se"] == pytest.approx(d.std(ddof=1) / math.sqrt(3) / mean_full)
+    assert e["mean_settlement_error"] == pytest.approx(
+        np.mean(np.abs(d) / (4e-3 * np.arange(1, 4))))
+    assert e["full_spread"] == pytest.approx(np.std([4e-3, 8e-3, 12e-3], ddof=1) / mean_full)
+    # the jump is linear between cycles 1 and 4: a third of the offset at cycle 2
+    assert e["path_bias"][1] == pytest.approx(d.mean() / 3 / (2 * 2e-3))
+    assert e["path_bias_largest"] == pytest.approx(abs(e["settlement_bias"]))
+    assert e["path_bias_cycle"] == 4
+    assert e["speedup"] == pytest.approx(300.0 / 78.0)
+    with pytest.raises(ValueError, match="at least two"):
+        ensemble(records, [("p0", "f0")])
+
+
+def test_a_procedure_replica_runs_from_the_bed_of_its_full_dem_replica(study, tmp_path):
+    """--procedure-replicas 1 on the study's folder: the procedure run repeated from the
+    bed of full DEM replica 1 (its first cycle that replica's to the bit, another than
+    the unperturbed run's), compared with that replica; the ensemble of the two pairs
+    and its figure written; every other run reused."""
+    out, _, _ = study
+    shutil.copytree(out / "bed", tmp_path / "bed")
+    for name in (FULL, "full_dem_replica_1", "shenton_ki2_k3_h3"):
+        shutil.copytree(out / "runs" / name, tmp_path / "runs" / name)
+    lines = []
+    summary = run_settlement_study(tmp_path, quick=True, ks=(3,), hs=(3,), k_fixed=3,
+                                   h_fixed=3, replicas=1, procedure_replicas=1,
+                                   echo=lines.append)
+    replica = "shenton_ki2_k3_h3_replica_1"
+    assert sum("reusing the finished run" in line for line in lines) == 3
+    assert summary["families"]["procedure_replica"] == [replica]
+    paths = summary["paths"]
+    assert paths[replica][0] == paths["full_dem_replica_1"][0] != paths[FULL][0]
+    row = summary["runs"][replica]
+    assert row["reference"] == "full_dem_replica_1"
+    assert row["settlement_error"] == pytest.approx(
+        abs(row["settlement_m"] - summary["runs"]["full_dem_replica_1"]["settlement_m"])
+        / summary["runs"]["full_dem_replica_1"]["settlement_m"])
+    e = summary["ensembles"]["shenton_ki2_k3_h3"]
+    assert e["pairs"] == [["shenton_ki2_k3_h3", FULL], [replica, "full_dem_replica_1"]]
+    assert e["cycle"] == 8 and math.isfinite(e["settlement_bias_se"])
+    assert (tmp_path / "settlement_ensemble.png").stat().st_size > 0

@@ -61,17 +61,36 @@ from ..analysis.settlement import relative_error
 
 LAWS = ("linear", "shenton")
 FULL = "full_dem"
-REPLICA = "full_dem_replica_"
+REPLICA_TAG = "_replica_"
+REPLICA = FULL + REPLICA_TAG
 PARTIAL = "study_partial.json"      # the times of an interrupted study run's sessions
 # how far replica r moves one grain of the settled bed: r x PERTURBATION [m], far below
 # any length of the bed (round-off of the positions is about 1e-18 m)
 PERTURBATION = 1e-9
 
 
+def replica_name(run, r):
+    """The name of replica r of study run ``run``: the same run from the bed with one
+    grain moved by r x PERTURBATION (full DEM: ``full_dem_replica_r``)."""
+    return f"{run}{REPLICA_TAG}{r}"
+
+
 def perturbation_of(name):
     """The displacement [m] replica ``name`` gives one grain of the bed (0 for every
     other run)."""
-    return int(name[len(REPLICA):]) * PERTURBATION if name.startswith(REPLICA) else 0.0
+    _, tag, r = name.rpartition(REPLICA_TAG)
+    return int(r) * PERTURBATION if tag and r.isdigit() else 0.0
+
+
+def reference_of(name):
+    """The full DEM run that study run ``name`` is compared with: for replica r of a
+    procedure run, full DEM from the same perturbed bed (replica r of full DEM); for
+    every other run, full DEM of the bed itself (so the errors of the full DEM
+    replicas are how far a nanometre moves full DEM)."""
+    base, tag, r = name.rpartition(REPLICA_TAG)
+    if tag and r.isdigit() and base != FULL:
+        return replica_name(FULL, int(r))
+    return FULL
 
 
 def perturb(path, displacement):
@@ -195,20 +214,26 @@ def study_config(base, grains=None, overrides=None):
 
 
 def plan(cycles, initial_cycles=10, ks=(10, 20, 40), hs=(10, 20, 40), k_fixed=40,
-         h_fixed=10, estimator="shenton", replicas=0):
+         h_fixed=10, estimator="shenton", replicas=0, procedure_replicas=0):
     """The study's runs: {name: protocol settings}, full DEM first, and the families
     {"k": names (k_i, k in ks, h = h_fixed), "h": names (k_i, k = k_fixed, h in hs),
     "replica": names of the ``replicas`` full DEM runs of a perturbed bed (replica r
-    has one grain moved by r x PERTURBATION, perturbation_of)}; a run in both families
-    is made once."""
+    has one grain moved by r x PERTURBATION, perturbation_of), "procedure_replica":
+    names of the replicas 1 to ``procedure_replicas`` of every procedure run, each from
+    the bed of the full DEM replica it is compared with (reference_of)}; a run in both
+    families is made once."""
     if estimator not in LAWS:
         raise ValueError(f"estimator {estimator!r}: choose one of {', '.join(LAWS)}")
     if replicas < 0:
         raise ValueError(f"replicas must be >= 0, got {replicas}")
+    if not 0 <= procedure_replicas <= replicas:
+        raise ValueError(f"procedure replicas must be between 0 and the replicas of full "
+                         f"DEM ({replicas}), each being compared with full DEM of its "
+                         f"own bed; got {procedure_replicas}")
     runs = {FULL: {"cycles": cycles, "extrapolation": "none"}}
-    families = {"k": [], "h": [], "replica": []}
+    families = {"k": [], "h": [], "replica": [], "procedure_replica": []}
     for r in range(1, replicas + 1):
-        name = f"{REPLICA}{r}"
+        name = replica_name(FULL, r)
         runs[name] = {"cycles": cycles, "extrapolation": "none"}
         families["replica"].append(name)
     for family, pairs in (("k", [(k, h_fixed) for k in ks]),
@@ -219,6 +244,10 @@ def plan(cycles, initial_cycles=10, ks=(10, 20, 40), hs=(10, 20, 40), k_fixed=40
                                    "initial_cycles": initial_cycles, "computed_cycles": k,
                                    "extrapolated_cycles": h})
             families[family].append(name)
+    for name in [n for n in runs if n != FULL and n not in families["replica"]]:
+        for r in range(1, procedure_replicas + 1):
+            runs[replica_name(name, r)] = dict(runs[name])
+            families["procedure_replica"].append(replica_name(name, r))
     return runs, families
 
 
@@ -436,7 +465,7 @@ def compare(run, full, run_dir, full_dir):
 def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=None,
                          initial_cycles=None, ks=None, hs=None, k_fixed=None, h_fixed=None,
                          estimator="shenton", mode="fully", overrides=None, threads=None,
-                         jobs=1, replicas=0, echo=print):
+                         jobs=1, replicas=0, procedure_replicas=0, echo=print):
     """Settle one bed, run full DEM and the procedure's k and h families from it (module
     docstring) into ``out``; write summary.csv, paths.csv, summary.json and the figures
     settlement_paths.png (Fig. 11) and settlement_errors.png (Fig. 12-13).
@@ -453,7 +482,10 @@ def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=Non
     grain moved by 1, 2, ... nm (perturb), compared with full DEM like the procedure's
     runs: the spread of their errors ("noise" in the summary) is how far apart two
     computations of the same bed land, the floor below which a procedure's error means
-    nothing.  Returns the summary dict."""
+    nothing; procedure_replicas: every procedure run repeated from the beds of the
+    first full DEM replicas, each compared with full DEM of its own bed, and the
+    pairs' mean error with its standard error ("ensembles", ensemble) written with
+    the figure settlement_ensemble.png.  Returns the summary dict."""
     out = pathlib.Path(out)
     q = quick
     cycles = cycles or (8 if q else 100)
@@ -471,7 +503,7 @@ def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=Non
     procedure = {key: data["protocol"].pop(key) for key in PROCEDURE_KEYS
                  if key in data["protocol"]}
     runs, families = plan(cycles, initial_cycles, ks, hs, k_fixed, h_fixed, estimator,
-                          replicas)
+                          replicas, procedure_replicas)
     runs = {name: settings if settings["extrapolation"] == "none"
             else {**procedure, **settings}
             for name, settings in runs.items()}
@@ -493,13 +525,15 @@ def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=Non
         records = {name: run_from_bed(bed, settings, out / "runs" / name, echo=echo,
                                       threads=threads, perturbation=perturbation_of(name))
                    for name, settings in runs.items()}
-    full = records[FULL]
     rows = []
     for name, record in records.items():
-        errors = compare(record, full, out / "runs" / name, out / "runs" / FULL)
+        reference = reference_of(name)
+        errors = compare(record, records[reference], out / "runs" / name,
+                         out / "runs" / reference)
         s = runs[name]
         rows.append({"run": name, "families": "+".join(f for f in families
                                                         if name in families[f]) or "reference",
+                     "reference": reference,
                      "estimator": s["extrapolation"],
                      "initial_cycles": s.get("initial_cycles", ""),
                      "computed_cycles_k": s.get("computed_cycles", ""),
@@ -522,6 +556,11 @@ def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=Non
         "paths": {name: r["path"] for name, r in records.items()},
         "coordination_paths": {name: r["coordination_path"] for name, r in records.items()},
         "noise": noise([r for r in rows if r["run"] in families["replica"]]),
+        "ensembles": {name: ensemble(records, [(name, FULL)] + [
+            (replica_name(name, r), replica_name(FULL, r))
+            for r in range(1, procedure_replicas + 1)])
+            for name in dict.fromkeys(families["k"] + families["h"])}
+        if procedure_replicas else {},
         "definitions": {
             "settlement_error": "|s_p(N) - s_full(N)| / s_full(N)",
             "coordination_error": "|Z_p(N) - Z_full(N)| / Z_full(N), Z = 2 C / N of the "
@@ -533,7 +572,11 @@ def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=Non
                                    "cycles (settling excluded)",
             "speedup": "t_full / t_p",
             "noise": "mean and largest of each error over the replicas, full DEM runs of "
-                     "the bed with one grain moved by 1, 2, ... nm"}}
+                     "the bed with one grain moved by 1, 2, ... nm",
+            "reference": "the full DEM run a run is compared with: that of its own bed "
+                         "for a procedure replica, of the unperturbed bed otherwise",
+            "ensembles": "per procedure run, its replicas each against full DEM of the "
+                         "same bed (ensemble)"}}
     _write_tables(out, rows, records)
     (out / "summary.json").write_text(json.dumps(summary, indent=1, default=float))
     figures(out, summary)
@@ -548,6 +591,61 @@ def noise(rows):
         return {}
     return {key: (float(np.mean([r[key] for r in rows])), float(max(r[key] for r in rows)))
             for key in keys}
+
+
+def path_on_cycles(path, cycles):
+    """The settlement [m] of a study path [(cycle, settlement, source)] at ``cycles``,
+    linear between the cycles it reports (an extrapolation's jump is linear in the
+    cycle for the linear estimator, and is drawn so for Shenton's)."""
+    return np.interp(cycles, [p[0] for p in path], [p[1] for p in path])
+
+
+def ensemble(records, pairs):
+    """The procedure against full DEM over replicated beds: ``pairs`` [(procedure run,
+    full DEM run of the same bed)] of the study records {name: record}, at least two.
+    With d_r = s_p,r - s_f,r the pair's difference in settlement [m]:
+
+    - settlement_bias = mean(d_r(N)) / mean(s_f,r(N)) at the last cycle N, with its
+      standard error std(d_r) / sqrt(n) / mean(s_f,r) (the beds differ by nanometres,
+      which the load cycles amplify into independent arrangements: each pair is a
+      sample); the procedure's own error, which more pairs resolve to any precision;
+    - mean_settlement_error = mean(|d_r(N)| / s_f,r(N)): what one run misses by, the
+      bias and the chaos of both computations together;
+    - full_spread, procedure_spread = std(s_r(N)) / mean(s_f,r(N)): how far apart two
+      runs of each land;
+    - path_bias (and path_bias_se) at every cycle c = 1..N, each path interpolated
+      linearly between the cycles it reports, and its largest magnitude;
+    - speedup = sum of full DEM's CPU times / sum of the procedure's."""
+    if len(pairs) < 2:
+        raise ValueError("an ensemble needs at least two pairs of runs")
+    procedure = [records[p] for p, _ in pairs]
+    full = [records[f] for _, f in pairs]
+    n = len(pairs)
+    last = min(r["cycle"] for r in procedure + full)
+    cycles = np.arange(1, last + 1)
+
+    s_full = np.array([path_on_cycles(r["path"], cycles) for r in full])
+    d = np.array([path_on_cycles(p["path"], cycles) for p in procedure]) - s_full
+    mean_full = s_full.mean(axis=0)
+    bias = d.mean(axis=0) / mean_full
+    worst = int(np.argmax(np.abs(bias)))
+    s_proc = s_full[:, -1] + d[:, -1]
+    return {"pairs": [list(pair) for pair in pairs], "cycle": int(last),
+            "settlement_full_mean_m": float(mean_full[-1]),
+            "settlement_procedure_mean_m": float(s_proc.mean()),
+            "settlement_bias": float(bias[-1]),
+            "settlement_bias_se": float(d[:, -1].std(ddof=1) / math.sqrt(n)
+                                        / mean_full[-1]),
+            "mean_settlement_error": float(np.mean(np.abs(d[:, -1]) / s_full[:, -1])),
+            "full_spread": float(s_full[:, -1].std(ddof=1) / mean_full[-1]),
+            "procedure_spread": float(s_proc.std(ddof=1) / mean_full[-1]),
+            "path_bias_largest": float(abs(bias[worst])),
+            "path_bias_cycle": int(cycles[worst]),
+            "path_bias": bias.tolist(),
+            "path_bias_se": (d.std(axis=0, ddof=1) / math.sqrt(n) / mean_full).tolist(),
+            "speedup": sum(r["cpu_s"] for r in full) / sum(r["cpu_s"] for r in procedure),
+            "cpu_full_s": sum(r["cpu_s"] for r in full),
+            "cpu_procedure_s": sum(r["cpu_s"] for r in procedure)}
 
 
 def _write_tables(out, rows, records):
@@ -582,8 +680,10 @@ def figures(out, summary):
         r = runs[name]
         if name.startswith(REPLICA):
             return f"full DEM, a grain moved by {perturbation_of(name) * 1e9:.0f} nm"
+        moved = f", a grain moved by {perturbation_of(name) * 1e9:.0f} nm" \
+            if perturbation_of(name) else ""
         return (f"k_i={r['initial_cycles']}, k={r['computed_cycles_k']}, "
-                f"h={r['extrapolated_cycles_h']}")
+                f"h={r['extrapolated_cycles_h']}{moved}")
 
     fig, axes = subplots(1, 2, figsize=(12, 4.5), sharey=True)
     for ax, family, tag in zip(axes, ("k", "h"), ("(a) varying k", "(b) varying h")):
@@ -639,6 +739,8 @@ def figures(out, summary):
     second = out / "settlement_errors.png"
     fig.savefig(second, dpi=110)
     made = [first, second]
+    if summary.get("ensembles"):
+        made.append(_ensemble_figure(out, summary, label, title))
     from ..protocols.cyclic import RELAXATIONS, relaxation_figure
 
     relaxed = [name for name in (*families["k"], *families["h"])
@@ -649,3 +751,47 @@ def figures(out, summary):
         made.append(out / "settlement_relaxation.png")
         fig.savefig(made[-1], dpi=110)
     return made
+
+
+def _ensemble_figure(out, summary, label, title):
+    """settlement_ensemble.png: the mean settlement path of full DEM and of each
+    procedure run over the replicated beds, each with a band of one spread (left), and
+    the bias of each procedure run, its mean difference from full DEM of the same beds
+    over full DEM's mean, with a band of one standard error and the lines at +-1 %
+    (right)."""
+    from ..figures import subplots
+
+    paths = summary["paths"]
+    fig, axes = subplots(1, 2, figsize=(13, 4.6))
+
+    def band(names, cycles, color, tag, lw):
+        s = 1e3 * np.array([path_on_cycles(paths[r], cycles) for r in names])
+        mean, spread = s.mean(axis=0), s.std(axis=0, ddof=1)
+        axes[0].plot(cycles, mean, "-", color=color, lw=lw, label=f"{tag}, {len(names)} beds")
+        axes[0].fill_between(cycles, mean - spread, mean + spread, color=color, alpha=0.15,
+                             lw=0)
+
+    for k, (name, e) in enumerate(summary["ensembles"].items()):
+        cycles = np.arange(1, e["cycle"] + 1)
+        if k == 0:
+            band([f for _, f in e["pairs"]], cycles, "k", "full DEM", 2)
+        band([p for p, _ in e["pairs"]], cycles, f"C{k}", label(name), 1.2)
+        bias = 100.0 * np.array(e["path_bias"])
+        se = 100.0 * np.array(e["path_bias_se"])
+        axes[1].plot(cycles, bias, "-", color=f"C{k}",
+                     label=f"{label(name)}: {100 * e['settlement_bias']:+.2f} +- "
+                           f"{100 * e['settlement_bias_se']:.2f} % at cycle {e['cycle']}, "
+                           f"{e['speedup']:.2f}x")
+        axes[1].fill_between(cycles, bias - se, bias + se, color=f"C{k}", alpha=0.2, lw=0)
+    for y in (-1.0, 1.0):
+        axes[1].axhline(y, color="0.5", ls="--", lw=0.8)
+    axes[1].axhline(0.0, color="k", lw=0.8)
+    axes[0].set(xlabel="cycle", ylabel="settlement [mm] (mean, band: one spread)")
+    axes[1].set(xlabel="cycle", ylabel="bias: mean(s_p - s_full) / mean(s_full) [%]")
+    for ax in axes:
+        ax.legend(fontsize=7)
+    fig.suptitle(f"The procedure over replicated beds (band: one standard error), {title}")
+    fig.tight_layout()
+    path = pathlib.Path(out) / "settlement_ensemble.png"
+    fig.savefig(path, dpi=110)
+    return path
