@@ -316,3 +316,7 @@ def test_a_procedure_replica_runs_from_the_bed_of_its_full_dem_replica(study, tm
     assert e["pairs"] == [["shenton_ki2_k3_h3", FULL], [replica, "full_dem_replica_1"]]
     assert e["cycle"] == 8 and math.isfinite(e["settlement_bias_se"])
     assert (tmp_path / "settlement_ensemble.png").stat().st_size > 0
+    with open(tmp_path / "ensembles.csv") as f:
+        table = list(csv.DictReader(f))
+    assert [(r["run"], r["pairs"]) for r in table] == [("shenton_ki2_k3_h3", "2")]
+    assert float(table[0]["settlement_bias"]) == pytest.approx(e["settlement_bias"])

@@ -485,7 +485,8 @@ def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=Non
     nothing; procedure_replicas: every procedure run repeated from the beds of the
     first full DEM replicas, each compared with full DEM of its own bed, and the
     pairs' mean error with its standard error ("ensembles", ensemble) written with
-    the figure settlement_ensemble.png.  Returns the summary dict."""
+    the figure settlement_ensemble.png and the table ensembles.csv.  Returns the summary
+    dict."""
     out = pathlib.Path(out)
     q = quick
     cycles = cycles or (8 if q else 100)
@@ -577,7 +578,7 @@ def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=Non
                          "for a procedure replica, of the unperturbed bed otherwise",
             "ensembles": "per procedure run, its replicas each against full DEM of the "
                          "same bed (ensemble)"}}
-    _write_tables(out, rows, records)
+    _write_tables(out, rows, records, summary["ensembles"])
     (out / "summary.json").write_text(json.dumps(summary, indent=1, default=float))
     figures(out, summary)
     return summary
@@ -648,8 +649,18 @@ def ensemble(records, pairs):
             "cpu_procedure_s": sum(r["cpu_s"] for r in procedure)}
 
 
-def _write_tables(out, rows, records):
-    """summary.csv (one row per run) and paths.csv (run, cycle, settlement, source)."""
+def _write_tables(out, rows, records, ensembles):
+    """summary.csv (one row per run), paths.csv (run, cycle, settlement, source) and,
+    with procedure replicas, ensembles.csv (one row per procedure run: its ensemble's
+    numbers at the last cycle, ensemble)."""
+    if ensembles:
+        with open(out / "ensembles.csv", "w", newline="") as f:
+            table = [{"run": name, "pairs": len(e["pairs"]),
+                      **{k: v for k, v in e.items() if not isinstance(v, list)}}
+                     for name, e in ensembles.items()]
+            writer = csv.DictWriter(f, fieldnames=list(table[0]))
+            writer.writeheader()
+            writer.writerows(table)
     with open(out / "summary.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
