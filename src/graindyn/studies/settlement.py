@@ -798,10 +798,11 @@ def _ensemble_figure(out, summary, label, title):
         axes[1].axhline(y, color="0.5", ls="--", lw=0.8)
     axes[1].axhline(0.0, color="k", lw=0.8)
     axes[0].set(xlabel="cycle", ylabel="settlement [mm] (mean, band: one spread)")
-    axes[1].set(xlabel="cycle", ylabel="bias: mean(s_p - s_full) / mean(s_full) [%]")
+    axes[1].set(xlabel="cycle",
+                ylabel="bias: mean(s_p - s_full) / mean(s_full) [%] (band: one s.e.)")
     for ax in axes:
         ax.legend(fontsize=7)
-    fig.suptitle(f"The procedure over replicated beds (band: one standard error), {title}")
+    fig.suptitle(f"The procedure over replicated beds, {title}")
     fig.tight_layout()
     path = pathlib.Path(out) / "settlement_ensemble.png"
     fig.savefig(path, dpi=110)
