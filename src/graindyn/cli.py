@@ -367,6 +367,10 @@ def study_settlement(
         "--procedure-replicas", help="Each procedure run repeated from the beds of the "
         "first of these replicas and compared with full DEM of its own bed: the mean "
         "error over the beds with its standard error (at most --replicas).", min=0)] = 0,
+    keep: Annotated[Optional[pathlib.Path], typer.Option(
+        help="A folder, small enough to commit, that keeps the bed, each finished run's "
+        "record and the tables and figures: a study with another --out takes the bed and "
+        "the finished runs from it, so that its replicas grow over sessions.")] = None,
     quick: Annotated[bool, typer.Option(
         help="A 120-grain soft bed, 8 cycles, k_i = 2, k and h in 2, 3 (about a minute).")]
     = False,
@@ -375,9 +379,9 @@ def study_settlement(
     procedure for several k and h; their settlement paths, the errors in settlement,
     coordination and configuration (Eq. 22) at the last cycle, and the gained time
     (t_full - t_procedure) / t_procedure, as summary.csv, paths.csv, summary.json and
-    PNG figures (docs/settlement.md).  Run again with the same --out, it reuses the bed
-    and the finished runs and resumes a run stopped by SIGINT or SIGTERM (exit 130/143)
-    from its checkpoint."""
+    PNG figures (docs/settlement.md).  Run again with the same --out (or the same
+    --keep), it reuses the bed and the finished runs and resumes a run stopped by SIGINT
+    or SIGTERM (exit 130/143) from its checkpoint."""
     import signal
     import tomllib
 
@@ -402,7 +406,8 @@ def study_settlement(
             initial_cycles=initial_cycles, ks=k and _numbers(k, "--k"),
             hs=h and _numbers(h, "--h"), k_fixed=k_fixed, h_fixed=h_fixed,
             estimator=estimator, mode=mode, overrides=overrides, threads=threads, jobs=jobs,
-            replicas=replicas, procedure_replicas=procedure_replicas, echo=typer.echo)
+            replicas=replicas, procedure_replicas=procedure_replicas, keep=keep,
+            echo=typer.echo)
     except (ConfigError, ValueError, FileExistsError) as err:
         _fail(err)
     except RunInterrupted as err:

@@ -320,3 +320,33 @@ def test_a_procedure_replica_runs_from_the_bed_of_its_full_dem_replica(study, tm
         table = list(csv.DictReader(f))
     assert [(r["run"], r["pairs"]) for r in table] == [("shenton_ki2_k3_h3", "2")]
     assert float(table[0]["settlement_bias"]) == pytest.approx(e["settlement_bias"])
+
+
+def test_a_keep_folder_carries_the_bed_and_the_runs_to_another_folder(study, tmp_path):
+    """--keep: the bed, each finished run's record (as its job ends, two jobs at a time
+    here) and the tables go to the keep folder;
+    a study in an empty folder with that keep folder computes nothing and writes the
+    same summary (the configuration error read from the kept residual files); a keep
+    folder whose bed is of another config is refused."""
+    out, _, _ = study
+    first, keep = tmp_path / "first", tmp_path / "keep"
+    shutil.copytree(out / "bed", first / "bed")
+    for name in (FULL, "shenton_ki2_k3_h3"):
+        shutil.copytree(out / "runs" / name, first / "runs" / name)
+    args = dict(quick=True, ks=(3,), hs=(3,), k_fixed=3, h_fixed=3)
+    summary = run_settlement_study(first, keep=keep, jobs=2, echo=lambda *a: None, **args)
+    assert (keep / "bed" / "settled.h5").exists() and (keep / "summary.csv").exists()
+    record = json.loads((keep / "runs" / FULL / "study_run.json").read_text())
+    assert (keep / "runs" / FULL / record["residual_file"]).exists()
+    assert not (keep / "runs" / FULL / "checkpoints").exists()
+    lines = []
+    again = run_settlement_study(tmp_path / "second", keep=keep, echo=lines.append, **args)
+    assert any("bed: reusing" in line for line in lines)
+    assert sum("reusing the finished run" in line for line in lines) == 2
+    for name, row in summary["runs"].items():
+        for key in ("settlement_m", "cpu_s", "settlement_error", "configuration_error",
+                    "coordination_error"):
+            assert again["runs"][name][key] == row[key], (name, key)
+    with pytest.raises(ValueError, match="holds a bed of another config"):
+        run_settlement_study(tmp_path / "third", keep=keep, echo=lambda *a: None,
+                             overrides={"protocol.stress_amplitude": 3e3}, **args)

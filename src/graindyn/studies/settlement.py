@@ -18,6 +18,14 @@ CPU and wall times summed over its sessions (``study_partial.json``); a run whos
 session ended otherwise (killed, crashed) starts again from the settled bed, since the
 time it spent is unknown.
 
+A keep folder (``keep``, ``--keep``) holds what the study needs to go on elsewhere, small
+enough to commit: the bed (``BED_FILES``: its config, the settled checkpoint and the
+settling's record), each finished run's record (``RUN_FILES``: study_run.json, its
+config and meta data, the residual displacements of its last cycle and the overlaps of
+its relaxations) and the study's tables and figures.  A study started in an empty out
+folder with the same keep folder takes the bed and the finished runs from it, so that
+an ensemble of beds grows over sessions and machines without computing a run twice.
+
 Measures, run p against the full molecular dynamics f, at the last cycle N:
 
 - settlement error  |s_p(N) - s_f(N)| / s_f(N), s the plate's descent since the cycles
@@ -67,6 +75,13 @@ PARTIAL = "study_partial.json"      # the times of an interrupted study run's se
 # how far replica r moves one grain of the settled bed: r x PERTURBATION [m], far below
 # any length of the bed (round-off of the positions is about 1e-18 m)
 PERTURBATION = 1e-9
+# what a keep folder holds of the bed, of a finished run (plus its last residual file)
+# and of the study (module docstring)
+BED_FILES = ("bed.json", "settled.h5", "run/config.toml", "run/meta.json", "run/series.csv")
+RUN_FILES = ("study_run.json", "config.toml", "meta.json")
+STUDY_FILES = ("summary.csv", "paths.csv", "summary.json", "ensembles.csv",
+               "settlement_paths.png", "settlement_errors.png", "settlement_relaxation.png",
+               "settlement_ensemble.png")
 
 
 def replica_name(run, r):
@@ -294,6 +309,64 @@ def prepare_bed(data, folder, echo=print):
     return run
 
 
+# ------------------------------------------------------------------ keep folder
+def _copy(source, target, names):
+    """Copy the files ``names`` (paths relative to ``source``) that ``source`` holds to
+    the same places under ``target``; a folder among them is copied whole."""
+    source, target = pathlib.Path(source), pathlib.Path(target)
+    for name in names:
+        path = source / name
+        if path.is_dir():
+            shutil.copytree(path, target / name, dirs_exist_ok=True)
+        elif path.is_file():
+            (target / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(path, target / name)
+
+
+def _bed_config(folder):
+    record = pathlib.Path(folder) / "bed.json"
+    return json.loads(record.read_text())["config"] if record.exists() else None
+
+
+def restore_bed(keep, bed, data):
+    """Bring the settled bed of the keep folder's ``keep``/bed into ``bed`` when ``bed``
+    holds none; ValueError when the kept bed is of another config than ``data``."""
+    kept = pathlib.Path(keep) / "bed"
+    config = _bed_config(kept)
+    if config is None or not (kept / "settled.h5").exists():
+        return
+    if config != json.loads(json.dumps(data)):
+        raise ValueError(f"--keep {keep} holds a bed of another config: choose another "
+                         "keep folder")
+    if _bed_config(bed) is None or not (pathlib.Path(bed) / "settled.h5").exists():
+        _copy(kept, bed, BED_FILES)
+
+
+def run_files(folder):
+    """The files of a finished study run in ``folder`` that a keep folder holds:
+    RUN_FILES, the residual displacements of its last cycle and its relaxations."""
+    from ..protocols.cyclic import RELAXATIONS
+
+    record = json.loads((pathlib.Path(folder) / "study_run.json").read_text())
+    return RUN_FILES + (record["residual_file"], RELAXATIONS)
+
+
+def restore_run(keep, folder):
+    """Bring the finished run ``keep``/runs/<name> into ``folder`` (its name) when
+    ``folder`` holds no finished run; run_from_bed then reuses it if its settings are
+    the study's, and runs it again otherwise."""
+    kept = pathlib.Path(keep) / "runs" / pathlib.Path(folder).name
+    if (kept / "study_run.json").exists() and not (pathlib.Path(folder) /
+                                                   "study_run.json").exists():
+        _copy(kept, folder, run_files(kept))
+
+
+def keep_run(folder, keep):
+    """Put the record of the finished run in ``folder`` into ``keep``/runs/<name>."""
+    folder = pathlib.Path(folder)
+    _copy(folder, pathlib.Path(keep) / "runs" / folder.name, run_files(folder))
+
+
 # ------------------------------------------------------------------ one run
 def run_from_bed(bed, settings, folder, echo=print, threads=None, perturbation=0.0):
     """The cycles of one study run in the run directory ``folder``: the bed's resolved
@@ -465,7 +538,8 @@ def compare(run, full, run_dir, full_dir):
 def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=None,
                          initial_cycles=None, ks=None, hs=None, k_fixed=None, h_fixed=None,
                          estimator="shenton", mode="fully", overrides=None, threads=None,
-                         jobs=1, replicas=0, procedure_replicas=0, echo=print):
+                         jobs=1, replicas=0, procedure_replicas=0, keep=None,
+                         echo=print):
     """Settle one bed, run full DEM and the procedure's k and h families from it (module
     docstring) into ``out``; write summary.csv, paths.csv, summary.json and the figures
     settlement_paths.png (Fig. 11) and settlement_errors.png (Fig. 12-13).
@@ -485,7 +559,9 @@ def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=Non
     nothing; procedure_replicas: every procedure run repeated from the beds of the
     first full DEM replicas, each compared with full DEM of its own bed, and the
     pairs' mean error with its standard error ("ensembles", ensemble) written with
-    the figure settlement_ensemble.png and the table ensembles.csv.  Returns the summary
+    the figure settlement_ensemble.png and the table ensembles.csv; keep: a keep folder
+    (module docstring) whose bed and finished runs are taken, and into which the bed,
+    each run as it finishes and the tables and figures go.  Returns the summary
     dict."""
     out = pathlib.Path(out)
     q = quick
@@ -510,22 +586,35 @@ def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=Non
             for name, settings in runs.items()}
     out.mkdir(parents=True, exist_ok=True)
     bed = out / "bed"
+    if keep is not None:
+        keep = pathlib.Path(keep)
+        restore_bed(keep, bed, data)
+        for name in runs:
+            restore_run(keep, out / "runs" / name)
     prepare_bed(data, bed, echo=echo)
+    if keep is not None:
+        _copy(bed, keep / "bed", BED_FILES)
+    records = {}
     if jobs > 1:
         import concurrent.futures
         import multiprocessing
 
         with concurrent.futures.ProcessPoolExecutor(
                 jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
-            futures = {name: pool.submit(run_from_bed, bed, settings, out / "runs" / name,
-                                         threads=threads,
-                                         perturbation=perturbation_of(name))
+            futures = {pool.submit(run_from_bed, bed, settings, out / "runs" / name,
+                                   threads=threads, perturbation=perturbation_of(name)): name
                        for name, settings in runs.items()}
-            records = {name: f.result() for name, f in futures.items()}
+            for future in concurrent.futures.as_completed(futures):
+                records[futures[future]] = future.result()
+                if keep is not None:
+                    keep_run(out / "runs" / futures[future], keep)
+        records = {name: records[name] for name in runs}
     else:
-        records = {name: run_from_bed(bed, settings, out / "runs" / name, echo=echo,
-                                      threads=threads, perturbation=perturbation_of(name))
-                   for name, settings in runs.items()}
+        for name, settings in runs.items():
+            records[name] = run_from_bed(bed, settings, out / "runs" / name, echo=echo,
+                                         threads=threads, perturbation=perturbation_of(name))
+            if keep is not None:
+                keep_run(out / "runs" / name, keep)
     rows = []
     for name, record in records.items():
         reference = reference_of(name)
@@ -581,6 +670,8 @@ def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=Non
     _write_tables(out, rows, records, summary["ensembles"])
     (out / "summary.json").write_text(json.dumps(summary, indent=1, default=float))
     figures(out, summary)
+    if keep is not None:
+        _copy(out, keep, STUDY_FILES)
     return summary
 
 
