@@ -350,3 +350,8 @@ def test_a_keep_folder_carries_the_bed_and_the_runs_to_another_folder(study, tmp
     with pytest.raises(ValueError, match="holds a bed of another config"):
         run_settlement_study(tmp_path / "third", keep=keep, echo=lambda *a: None,
                              overrides={"protocol.stress_amplitude": 3e3}, **args)
+    other = tmp_path / "other"
+    shutil.copytree(first / "bed", other / "bed")
+    perturb(other / "bed" / "settled.h5", 1e-9)         # another settling of the config
+    with pytest.raises(ValueError, match="two different settlings"):
+        run_settlement_study(other, keep=keep, echo=lambda *a: None, **args)

@@ -340,6 +340,20 @@ def restore_bed(keep, bed, data):
                          "keep folder")
     if _bed_config(bed) is None or not (pathlib.Path(bed) / "settled.h5").exists():
         _copy(kept, bed, BED_FILES)
+    elif not _same_grains(kept / "settled.h5", pathlib.Path(bed) / "settled.h5"):
+        raise ValueError(f"{bed} and --keep {keep} hold two different settlings of the "
+                         "same config (on machines of two kinds, say): the kept runs start "
+                         "from the kept one; remove the out folder's bed or choose another "
+                         "keep folder")
+
+
+def _same_grains(first, second):
+    """True when the checkpoints ``first`` and ``second`` hold the same grain
+    positions."""
+    import h5py
+
+    with h5py.File(first, "r") as a, h5py.File(second, "r") as b:
+        return np.array_equal(a["grains/positions"][...], b["grains/positions"][...])
 
 
 def run_files(folder):
@@ -358,7 +372,9 @@ def restore_run(keep, folder):
     kept = pathlib.Path(keep) / "runs" / pathlib.Path(folder).name
     if (kept / "study_run.json").exists() and not (pathlib.Path(folder) /
                                                    "study_run.json").exists():
-        _copy(kept, folder, run_files(kept))
+        files = run_files(kept)
+        if (kept / files[len(RUN_FILES)]).exists():     # its residuals: else run it again
+            _copy(kept, folder, files)
 
 
 def keep_run(folder, keep):
