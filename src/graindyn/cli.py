@@ -189,6 +189,11 @@ def sweep_command(
     summarize: Annotated[bool, typer.Option(
         "--summarize", help="Write the summaries of the runs finished so far (with "
         "--keep: those recorded there too), run nothing.")] = False,
+    status: Annotated[bool, typer.Option(
+        "--status", help="Show where each run stands, run nothing: finished (with "
+        "--keep: those recorded there too), started (the simulated time reached, its "
+        "rate and its last phase or level; running, or interrupted and resumable), "
+        "failed or not started.")] = False,
     seeds: Annotated[Optional[str], typer.Option(
         help="Run only these seeds of the sweep (comma-separated, e.g. 3,4,5); the "
         "summary covers every finished run.")] = None,
@@ -207,7 +212,7 @@ def sweep_command(
     """
     from .config import ConfigError
     from .sweep import Sweep, SweepInterrupted, run as run_sweep, summarize as summarize_sweep
-    from .sweep import value_text
+    from .sweep import standing, value_text
 
     if scheduler is not None and workers is not None:
         _fail("--workers sets the size of the local cluster: leave it out with --scheduler")
@@ -241,6 +246,10 @@ def sweep_command(
         if summarize:
             summarize_sweep(plan, target, keep=keep)
             return
+        if status:
+            for line in _standing_lines(standing(plan, target, keep=keep), target):
+                typer.echo(line)
+            return
         report = run_sweep(plan, target, scheduler=scheduler, workers=workers,
                            threads_per_worker=threads_per_worker, keep=keep,
                            seeds=chosen, points=names)
@@ -252,6 +261,42 @@ def sweep_command(
         _fail("interrupted: rerun the same command to continue", 130)
     if report.exit_code:
         raise typer.Exit(report.exit_code)
+
+
+def _duration(seconds):
+    """A duration for people: 45 s, 12 min, 3.2 h."""
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    return f"{seconds / 60:.0f} min" if seconds < 7200 else f"{seconds / 3600:.1f} h"
+
+
+def _standing_lines(rows, out):
+    """What ``graindyn sweep --status`` prints: a line per run (sweep.standing), then
+    the count of each state."""
+    lines, counts = [], {}
+    for row in rows:
+        state = row["state"]
+        counts[state] = counts.get(state, 0) + 1
+        if state == "finished":
+            text = "finished" + (" (recorded in the keep folder)" if row.get("kept") else "")
+            if row.get("wall_s") is not None:
+                text += f", last session {_duration(row['wall_s'])} of wall time"
+        elif state == "failed":
+            text = f"FAILED: {row['error']}"
+        elif state == "started":
+            text = "started"
+            if row["simulated_s"] is not None:
+                text += f": t = {row['simulated_s']:.4g} s"
+            if row["rate"] is not None:
+                text += f" ({row['rate']:.3g} simulated s per wall hour)"
+            text += f", logged {_duration(row['quiet_s'])} ago: {row['news']}"
+        else:
+            text = state
+        lines.append(f"  {row['name']:40s} {text}")
+    order = ("finished", "started", "failed", "not started")
+    lines.append(f"{out}: {len(rows)} runs, " + ", ".join(
+        f"{counts[s]} {s}" for s in order if counts.get(s)))
+    return lines
 
 
 cache = typer.Typer(invoke_without_command=True,

@@ -115,6 +115,63 @@ def test_task_leaves_foreign_files_alone(calls, point):
 
 
 # ---------------------------------------------------------------- interrupted, resumed
+def _run_folder(root, seed):
+    folder = root / "reference" / f"seed-{seed}"
+    folder.mkdir(parents=True)
+    return folder
+
+
+def test_status_says_where_each_run_stands_and_writes_nothing(tmp_path):
+    """``--status``: a finished run (its wall time), one recorded only in the keep
+    folder, a started run (the last simulated time its log names, its last line that is
+    not a checkpoint, the rate between the last two checkpoints of its latest session),
+    a failed run and one not started; no file is written or changed."""
+    path = write_sweep(tmp_path, {"seeds": [1, 2, 3, 4, 5]})
+    sweep = Sweep.load(path)
+    out, keep = tmp_path / "out", tmp_path / "keep"
+    (_run_folder(out, 1) / "results.json").write_text('{"wall_time_this_session_s": 754.0}')
+    (_run_folder(keep, 2) / "results.json").write_text('{"wall_time_this_session_s": 30.0}')
+    log = _run_folder(out, 3) / "run.log"
+    log.write_text("\n".join([
+        "2026-12-06 01:00:00,000 start: 30 grains, soft engine, dt = 1e-07 s",
+        "2026-12-06 01:00:00,100 checkpoint at t = 0 s (step 0)",
+        "2026-12-06 01:00:00,100 phase settle from t = 0 s",
+        "2026-12-06 01:10:00,000 checkpoint at t = 0.02 s (step 200000)",
+        "2026-12-06 02:00:00,000 resume from t = 0.02 s (step 200000), 1 threads",
+        "2026-12-06 02:00:01,000 phase load from t = 0.02 s",
+        "2026-12-06 02:06:00,000 checkpoint at t = 0.03 s (step 300000)",
+        "2026-12-06 02:12:00,000 checkpoint at t = 0.04 s (step 400000)",
+        "2026-12-06 02:13:00,000 level 2 (loading) p = 5e+04 Pa: at rest at t = 0.041 s",
+        "a line the logger did not write, t = 9 s"]) + "\n")
+    (_run_folder(out, 4) / "error.txt").write_text("OverlapError: an overlap exceeded\nmore")
+    before = {f: f.stat().st_mtime_ns for f in tmp_path.rglob("*")}
+
+    rows = sweeps.standing(sweep, out, keep=keep, now=log.stat().st_mtime + 90.0)
+    assert [r["name"] for r in rows] == [f"reference/seed-{s}" for s in range(1, 6)]
+    assert rows[0] == {"name": "reference/seed-1", "state": "finished", "wall_s": 754.0}
+    assert rows[1] == {"name": "reference/seed-2", "state": "finished", "wall_s": 30.0,
+                       "kept": True}
+    started = rows[2]
+    assert started["state"] == "started"
+    assert started["simulated_s"] == 0.041
+    assert started["news"] == "level 2 (loading) p = 5e+04 Pa: at rest at t = 0.041 s"
+    assert started["quiet_s"] == pytest.approx(90.0)
+    assert started["rate"] == pytest.approx(0.1)     # 0.01 s in 6 min, not across sessions
+    assert rows[3] == {"name": "reference/seed-4", "state": "failed",
+                       "error": "OverlapError: an overlap exceeded"}
+    assert rows[4] == {"name": "reference/seed-5", "state": "not started"}
+
+    result = runner.invoke(app, ["sweep", str(path), "--out", str(out), "--keep", str(keep),
+                                 "--status"])
+    assert result.exit_code == 0, result.output
+    assert "5 runs, 2 finished, 1 started, 1 failed, 1 not started" in result.output
+    assert "finished, last session 13 min of wall time" in result.output
+    assert "finished (recorded in the keep folder), last session 30 s" in result.output
+    assert "started: t = 0.041 s (0.1 simulated s per wall hour), logged" in result.output
+    assert "FAILED: OverlapError: an overlap exceeded" in result.output
+    assert {f: f.stat().st_mtime_ns for f in tmp_path.rglob("*")} == before
+
+
 @pytest.fixture(scope="module")
 def interrupted(tmp_path_factory):
     """``graindyn sweep`` on a local cluster of one worker: the reference (short), a long
