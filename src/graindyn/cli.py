@@ -271,8 +271,9 @@ def _duration(seconds):
 
 
 def _standing_lines(rows, out):
-    """What ``graindyn sweep --status`` prints: a line per run (sweep.standing), then
-    the count of each state."""
+    """What ``--status`` prints (``graindyn sweep``: sweep.standing; ``graindyn study
+    settlement``: studies.settlement.study_standing): a line per run, then the count of
+    each state."""
     lines, counts = [], {}
     for row in rows:
         state = row["state"]
@@ -419,6 +420,10 @@ def study_settlement(
     quick: Annotated[bool, typer.Option(
         help="A 120-grain soft bed, 8 cycles, k_i = 2, k and h in 2, 3 (about a minute).")]
     = False,
+    status: Annotated[bool, typer.Option(
+        "--status", help="Show where the bed and each run of this study stand (finished, "
+        "with --keep those kept there too; started: the simulated time reached, its rate "
+        "and last line; not started), run nothing.")] = False,
 ):
     """Karrech Fig. 11-13: one bed settled once; from it full DEM and the sequential
     procedure for several k and h; their settlement paths, the errors in settlement,
@@ -433,7 +438,7 @@ def study_settlement(
     from .config import ConfigError
     from .config.load import read_toml
     from .runner import RunInterrupted
-    from .studies.settlement import run_settlement_study
+    from .studies.settlement import run_settlement_study, study_standing
 
     overrides = {}
     for item in set_ or []:
@@ -446,13 +451,17 @@ def study_settlement(
             overrides[key.strip()] = text.strip()
     try:
         base = read_toml(config) if config is not None else None
-        summary = run_settlement_study(
-            out, quick=quick, base=base, grains=grains, cycles=cycles,
-            initial_cycles=initial_cycles, ks=k and _numbers(k, "--k"),
-            hs=h and _numbers(h, "--h"), k_fixed=k_fixed, h_fixed=h_fixed,
-            estimator=estimator, mode=mode, overrides=overrides, threads=threads, jobs=jobs,
-            replicas=replicas, procedure_replicas=procedure_replicas, keep=keep,
-            echo=typer.echo)
+        arguments = dict(quick=quick, base=base, grains=grains, cycles=cycles,
+                         initial_cycles=initial_cycles, ks=k and _numbers(k, "--k"),
+                         hs=h and _numbers(h, "--h"), k_fixed=k_fixed, h_fixed=h_fixed,
+                         estimator=estimator, mode=mode, overrides=overrides,
+                         replicas=replicas, procedure_replicas=procedure_replicas)
+        if status:
+            for line in _standing_lines(study_standing(out, keep=keep, **arguments), out):
+                typer.echo(line)
+            return
+        summary = run_settlement_study(out, threads=threads, jobs=jobs, keep=keep,
+                                       echo=typer.echo, **arguments)
     except (ConfigError, ValueError, FileExistsError) as err:
         _fail(err)
     except RunInterrupted as err:

@@ -331,34 +331,12 @@ def finished(directory):
     return results if isinstance(results, dict) else None
 
 
-# a line of run.log (output/rundir.py): "2026-12-06 01:24:41,034 checkpoint at t = 0 s ..."
-_LOG_LINE = re.compile(r"^(\d{4}-\d\d-\d\d \d\d:\d\d:\d\d),\d+ (.*)$")
-_SIMULATED = re.compile(r"\bt = ([-+0-9.eE]+) s\b")
-
-
-def _log_entries(path):
-    """The lines of a run's run.log as (wall-clock time [s since the epoch], text),
-    the lines not written by the logger left out."""
-    entries = []
-    with contextlib.suppress(OSError):
-        for line in pathlib.Path(path).read_text(errors="replace").splitlines():
-            match = _LOG_LINE.match(line)
-            if match:
-                stamp = time.mktime(time.strptime(match[1], "%Y-%m-%d %H:%M:%S"))
-                entries.append((stamp, match[2]))
-    return entries
-
-
 def run_standing(directory, now=None):
     """Where the run in ``directory`` stands, read from its files without changing
     them: a dict with ``state`` "finished" (with ``wall_s``, the wall time of its last
     session [s]), "failed" (``error``: the first line of error.txt), "started" (a log:
-    running now, or interrupted and resumable) or "not started".  A started run also
-    gives ``simulated_s`` (the last simulated time its log names [s]), ``news`` (its
-    last line that is not a checkpoint: the phase, level or stage it is in),
-    ``quiet_s`` (how long ago the log was written [s]) and ``rate`` (simulated seconds
-    per wall-clock hour between its last two checkpoints of one session; None with
-    fewer)."""
+    running now, or interrupted and resumable; with what output.rundir.progress reads
+    from the log) or "not started"."""
     directory = pathlib.Path(directory)
     results = finished(directory)
     if results is not None:
@@ -367,25 +345,10 @@ def run_standing(directory, now=None):
     if error.exists():
         lines = error.read_text(errors="replace").strip().splitlines()
         return {"state": "failed", "error": lines[0] if lines else ""}
-    log = directory / "run.log"
-    entries = _log_entries(log)
-    if not entries:
-        return {"state": "not started"}
-    simulated = [float(m[1]) for _, text in entries if (m := _SIMULATED.search(text))]
-    news = [text for _, text in entries if not text.startswith("checkpoint")]
-    marks = []
-    for stamp, text in entries:
-        if text.startswith(("start", "resume")):
-            marks = []                    # a new session: its clock starts afresh
-        elif text.startswith("checkpoint") and (m := _SIMULATED.search(text)):
-            marks.append((stamp, float(m[1])))
-    rate = None
-    if len(marks) >= 2 and marks[-1][0] > marks[-2][0]:
-        rate = 3600.0 * (marks[-1][1] - marks[-2][1]) / (marks[-1][0] - marks[-2][0])
-    now = time.time() if now is None else now
-    return {"state": "started", "simulated_s": simulated[-1] if simulated else None,
-            "news": news[-1] if news else "", "quiet_s": now - log.stat().st_mtime,
-            "rate": rate}
+    from .output.rundir import progress
+
+    news = progress(directory, now)
+    return {"state": "not started"} if news is None else {"state": "started", **news}
 
 
 def standing(sweep: "Sweep", out, keep=None, now=None):

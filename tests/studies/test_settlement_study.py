@@ -21,7 +21,8 @@ from graindyn.runner import RunInterrupted
 from graindyn.studies.settlement import (FULL, PARTIAL, QUICK, contact_coordination,
                                          ensemble, perturb, perturbation_of, plan,
                                          reference_of, run_from_bed,
-                                         run_settlement_study, set_dotted, study_config)
+                                         run_settlement_study, set_dotted, study_config,
+                                         study_standing)
 
 
 @pytest.fixture(scope="module")
@@ -126,6 +127,44 @@ def test_a_second_call_reuses_the_bed_and_the_runs(study):
     assert result.output.count("reusing the finished run") == len(summary["runs"])
     again = json.loads((out / "summary.json").read_text())
     assert again["runs"][FULL]["cpu_s"] == summary["runs"][FULL]["cpu_s"]
+
+
+def test_status_of_a_finished_study_writes_nothing(study):
+    out, summary, _ = study
+    before = {f: f.stat().st_mtime_ns for f in out.rglob("*")}
+    result = CliRunner().invoke(app, ["study", "settlement", "--quick", "--out", str(out),
+                                      "--k", "2,3", "--h", "3", "--replicas", "1",
+                                      "--status"])
+    assert result.exit_code == 0, result.output
+    runs = len(summary["runs"]) + 1              # and the bed
+    assert f"{out}: {runs} runs, {runs} finished" in result.output
+    assert {f: f.stat().st_mtime_ns for f in out.rglob("*")} == before
+
+
+def test_status_reads_the_bed_and_each_run_from_their_files(tmp_path):
+    """The bed settled, full DEM finished here, a procedure run finished only in the
+    keep folder, one started (the simulated time and the last line of its log) and
+    one not started, in the plan's order."""
+    out, keep = tmp_path / "out", tmp_path / "keep"
+    (out / "bed").mkdir(parents=True)
+    (out / "bed" / "bed.json").write_text("{}")
+    for folder in (out / "runs" / FULL, keep / "runs" / "linear_ki2_k2_h2"):
+        folder.mkdir(parents=True)
+        (folder / "study_run.json").write_text("{}")
+    started = out / "runs" / "linear_ki2_k3_h2"
+    started.mkdir(parents=True)
+    (started / "run.log").write_text(
+        "2026-12-06 02:00:00,000 resume from t = 0.5 s (step 1), 1 threads\n"
+        "2026-12-06 02:00:10,000 cycle 3 ended at t = 0.52 s: settlement 1e-05 m\n")
+    rows = study_standing(out, keep=keep, now=(started / "run.log").stat().st_mtime + 5.0,
+                          quick=True, estimator="linear")
+    assert [(r["name"], r["state"]) for r in rows] == [
+        ("bed", "finished"), (FULL, "finished"), ("linear_ki2_k2_h2", "finished"),
+        ("linear_ki2_k3_h2", "started"), ("linear_ki2_k3_h3", "not started")]
+    assert rows[2]["kept"] and "kept" not in rows[1]
+    assert rows[3]["simulated_s"] == 0.52 and rows[3]["rate"] is None
+    assert rows[3]["news"] == "cycle 3 ended at t = 0.52 s: settlement 1e-05 m"
+    assert rows[3]["quiet_s"] == pytest.approx(5.0)
 
 
 def _terminate_when(log, text, timeout=600.0):

@@ -16,8 +16,10 @@ import logging
 import os
 import pathlib
 import platform
+import re
 import subprocess
 import sys
+import time
 
 import numba
 import numpy as np
@@ -42,6 +44,56 @@ def machine():
             "cores": os.cpu_count(), "python": sys.version.split()[0],
             "numpy": np.__version__, "numba": numba.__version__,
             "platform": platform.platform()}
+
+
+# a line of run.log (RunDirectory.log): "2026-12-06 01:24:41,034 checkpoint at t = 0 s ..."
+_LOG_LINE = re.compile(r"^(\d{4}-\d\d-\d\d \d\d:\d\d:\d\d),\d+ (.*)$")
+_SIMULATED = re.compile(r"\bt = ([-+0-9.eE]+) s\b")
+
+
+def _log_entries(path):
+    """The lines of a run.log as (wall-clock time [s since the epoch], text), the lines
+    the logger did not write left out."""
+    entries = []
+    try:
+        text = pathlib.Path(path).read_text(errors="replace")
+    except OSError:
+        return entries
+    for line in text.splitlines():
+        match = _LOG_LINE.match(line)
+        if match:
+            stamp = time.mktime(time.strptime(match[1], "%Y-%m-%d %H:%M:%S"))
+            entries.append((stamp, match[2]))
+    return entries
+
+
+def progress(path, now=None):
+    """How far the run in the run directory ``path`` has gone, read from its run.log
+    alone (running now, or interrupted): None without a log, else a dict with
+    ``simulated_s`` (the last simulated time the log names [s], None if none),
+    ``news`` (its last line that is not a checkpoint: the phase, level, cycle or
+    avalanche it is in), ``quiet_s`` (how long ago the log was written [s]) and
+    ``rate`` (simulated seconds per wall-clock hour between its last two checkpoints
+    of one session; None with fewer)."""
+    log = pathlib.Path(path) / "run.log"
+    entries = _log_entries(log)
+    if not entries:
+        return None
+    simulated = [float(m[1]) for _, text in entries if (m := _SIMULATED.search(text))]
+    news = [text for _, text in entries if not text.startswith("checkpoint")]
+    marks = []
+    for stamp, text in entries:
+        if text.startswith(("start", "resume")):
+            marks = []                    # a new session: its clock starts afresh
+        elif text.startswith("checkpoint") and (m := _SIMULATED.search(text)):
+            marks.append((stamp, float(m[1])))
+    rate = None
+    if len(marks) >= 2 and marks[-1][0] > marks[-2][0]:
+        rate = 3600.0 * (marks[-1][1] - marks[-2][1]) / (marks[-1][0] - marks[-2][0])
+    now = time.time() if now is None else now
+    return {"simulated_s": simulated[-1] if simulated else None,
+            "news": news[-1] if news else "", "quiet_s": now - log.stat().st_mtime,
+            "rate": rate}
 
 
 class RunDirectory:

@@ -551,6 +551,66 @@ def compare(run, full, run_dir, full_dir):
 
 
 # ------------------------------------------------------------------ the study
+def study_plan(*, quick=False, base=None, grains=None, cycles=None, initial_cycles=None,
+               ks=None, hs=None, k_fixed=None, h_fixed=None, estimator="shenton",
+               mode="fully", overrides=None, replicas=0, procedure_replicas=0):
+    """What run_settlement_study (its arguments and defaults) computes: the bed's config
+    dict, the runs {name: protocol settings}, the families {family: [names]} and the
+    number of cycles N."""
+    q = quick
+    cycles = cycles or (8 if q else 100)
+    initial_cycles = initial_cycles or (2 if q else 10)
+    ks = tuple(ks or ((2, 3) if q else (10, 20, 40)))
+    hs = tuple(hs or ((2, 3) if q else (10, 20, 40)))
+    k_fixed, h_fixed = k_fixed or (3 if q else 40), h_fixed or (2 if q else 10)
+    if mode not in MODES:
+        raise ValueError(f"mode {mode!r}: choose one of {', '.join(MODES)}")
+    if base is None:
+        base = QUICK if q else TABLE1
+        if grains is None and not q:
+            grains = 430
+    data = study_config(base, grains, {**MODES[mode], **(overrides or {})})
+    procedure = {key: data["protocol"].pop(key) for key in PROCEDURE_KEYS
+                 if key in data["protocol"]}
+    runs, families = plan(cycles, initial_cycles, ks, hs, k_fixed, h_fixed, estimator,
+                          replicas, procedure_replicas)
+    runs = {name: settings if settings["extrapolation"] == "none"
+            else {**procedure, **settings}
+            for name, settings in runs.items()}
+    return data, runs, families, cycles
+
+
+def study_standing(out, keep=None, now=None, **arguments):
+    """Where each run of the study that run_settlement_study(out, keep=keep,
+    **arguments) computes stands, from the files alone (nothing runs, nothing is
+    written): the bed's settling ("bed"), then every run, each a dict with its
+    ``name`` and ``state``: "finished" (its study_run.json in ``out``, or only in the
+    keep folder: ``kept``), "started" (a log in ``out``: running, or interrupted and
+    resumed by the next study command; with what output.rundir.progress reads) or
+    "not started"."""
+    from ..output.rundir import progress
+
+    out = pathlib.Path(out)
+    runs = study_plan(**arguments)[1]
+    folders = {"bed": (out / "bed" / "bed.json", out / "bed" / "run",
+                       None if keep is None else pathlib.Path(keep) / "bed" / "bed.json")}
+    for name in runs:
+        folders[name] = (out / "runs" / name / "study_run.json", out / "runs" / name,
+                         None if keep is None else
+                         pathlib.Path(keep) / "runs" / name / "study_run.json")
+    rows = []
+    for name, (done, folder, kept) in folders.items():
+        if done.exists():
+            row = {"state": "finished"}
+        elif kept is not None and kept.exists():
+            row = {"state": "finished", "kept": True}
+        else:
+            news = progress(folder, now)
+            row = {"state": "not started"} if news is None else {"state": "started", **news}
+        rows.append({"name": name, **row})
+    return rows
+
+
 def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=None,
                          initial_cycles=None, ks=None, hs=None, k_fixed=None, h_fixed=None,
                          estimator="shenton", mode="fully", overrides=None, threads=None,
@@ -580,26 +640,10 @@ def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=Non
     each run as it finishes and the tables and figures go.  Returns the summary
     dict."""
     out = pathlib.Path(out)
-    q = quick
-    cycles = cycles or (8 if q else 100)
-    initial_cycles = initial_cycles or (2 if q else 10)
-    ks = tuple(ks or ((2, 3) if q else (10, 20, 40)))
-    hs = tuple(hs or ((2, 3) if q else (10, 20, 40)))
-    k_fixed, h_fixed = k_fixed or (3 if q else 40), h_fixed or (2 if q else 10)
-    if mode not in MODES:
-        raise ValueError(f"mode {mode!r}: choose one of {', '.join(MODES)}")
-    if base is None:
-        base = QUICK if q else TABLE1
-        if grains is None and not q:
-            grains = 430
-    data = study_config(base, grains, {**MODES[mode], **(overrides or {})})
-    procedure = {key: data["protocol"].pop(key) for key in PROCEDURE_KEYS
-                 if key in data["protocol"]}
-    runs, families = plan(cycles, initial_cycles, ks, hs, k_fixed, h_fixed, estimator,
-                          replicas, procedure_replicas)
-    runs = {name: settings if settings["extrapolation"] == "none"
-            else {**procedure, **settings}
-            for name, settings in runs.items()}
+    data, runs, families, cycles = study_plan(
+        quick=quick, base=base, grains=grains, cycles=cycles, initial_cycles=initial_cycles,
+        ks=ks, hs=hs, k_fixed=k_fixed, h_fixed=h_fixed, estimator=estimator, mode=mode,
+        overrides=overrides, replicas=replicas, procedure_replicas=procedure_replicas)
     out.mkdir(parents=True, exist_ok=True)
     bed = out / "bed"
     if keep is not None:
