@@ -58,3 +58,42 @@ def test_a_failing_job_and_a_failing_round_are_reported_to_their_jobs():
     results = batch.run([broken, job(batch, "y", [4, 4])])
     assert isinstance(results[0], ValueError)
     assert isinstance(results[1], RuntimeError) and "device lost" in str(results[1])
+
+
+def test_job_threads_take_turns_between_chunks_and_never_overlap_a_round():
+    """Between chunks a job may launch kernels of its own (energies, contacts), and the
+    CUDA simulator's kernels are not thread-safe: at most one job thread runs at a
+    time, and none while a round runs.  Each job spends time between its chunks
+    (a sleep lets the other threads run); the spans recorded must not overlap."""
+    import time
+
+    spans = []
+    inside = []
+
+    class Timed(Recorder):
+        def _round(self, requests):
+            inside.append("round")
+            assert inside == ["round"], inside
+            time.sleep(0.002)
+            inside.remove("round")
+            return super()._round(requests)
+
+    batch = Timed()
+
+    def busy(name):
+        def run():
+            for n in (1, 2, 3):
+                inside.append(name)
+                assert inside == [name], inside
+                start = time.perf_counter()
+                time.sleep(0.002)
+                spans.append((start, time.perf_counter()))
+                inside.remove(name)
+                batch.chunk(name, n)
+            return name
+        return run
+
+    assert batch.run([busy(k) for k in "abcd"]) == list("abcd")
+    assert batch.seen[0] == dict.fromkeys("abcd", 1) and len(batch.seen) == 3
+    spans.sort()
+    assert all(a[1] <= b[0] for a, b in zip(spans, spans[1:]))

@@ -7,8 +7,13 @@ with backend "gpu" asks for a chunk, the thread waits, and once every running jo
 waiting (or done) their chunks run together as one ensemble (engine.DeviceEnsemble:
 one set of kernel launches for all of them).  The jobs' code is unchanged: triggers,
 stop conditions, checkpoints and errors behave as in a run alone, and every job gets
-the numbers it gets alone, to the bit.  All device work happens in the calling
-thread; the job threads only run Python between chunks.
+the numbers it gets alone, to the bit.  The chunks run in the calling thread; between
+chunks a job's own calls (energies, contacts, snapshots) may launch kernels too, so
+the job threads take turns: one at a time runs, holding the batch's baton, and lets go
+of it while it waits for a round.  So no two threads ever launch kernels at once: the
+CUDA simulator's kernels are not thread-safe (a launch configures the kernel object
+itself, and swaps its module's ``cuda`` for the launch's), and the members' scratch
+arrays are shared.
 
 Members of one round that cannot share kernels (another contact model, dimension or
 integrator) run as separate ensembles in that round.
@@ -32,6 +37,7 @@ class Batch:
 
     def __init__(self):
         self._lock = threading.Condition()
+        self._baton = threading.Lock()       # held by the one job thread that runs
         self._requests = {}          # Simulation -> (job index, steps asked)
         self._results = {}
         self._running = 0
@@ -42,12 +48,16 @@ class Batch:
         """Called from a job thread by Simulation._chunk: wait for the next round and
         return its (status, steps done) for ``sim``; raises in this job what made the
         round fail."""
-        with self._lock:
-            self._requests[sim] = (_LOCAL.index, int(nsteps))
-            self._lock.notify_all()
-            while sim not in self._results:
-                self._lock.wait()
-            result = self._results.pop(sim)
+        self._baton.release()
+        try:
+            with self._lock:
+                self._requests[sim] = (_LOCAL.index, int(nsteps))
+                self._lock.notify_all()
+                while sim not in self._results:
+                    self._lock.wait()
+                result = self._results.pop(sim)
+        finally:
+            self._baton.acquire()
         if isinstance(result, BaseException):
             raise result
         return result
@@ -63,10 +73,11 @@ class Batch:
         def member(index, job):
             _LOCAL.batch = self
             _LOCAL.index = index
-            try:
-                result = job()
-            except BaseException as err:      # reported to the caller, never lost
-                result = err
+            with self._baton:
+                try:
+                    result = job()
+                except BaseException as err:      # reported to the caller, never lost
+                    result = err
             with self._lock:
                 results[index] = result
                 finished.append(index)
