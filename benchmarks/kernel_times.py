@@ -12,12 +12,15 @@ times, each in a compiled loop of REPS calls (default 500, best of 5 batches), t
 kernels of a step (engines/soft/loop.py): the half-skin test,
 drift, pair forces, wall forces (and the sum onto walls), the gather-and-correct pass
 (alone, and with the next step's drift), and a whole step (run_chunk: its integrator
-may evaluate the forces more than once, as the optimized velocity Verlet does).
+may evaluate the forces more than once, as the optimized velocity Verlet does); for
+``silo2d`` also the pair forces written out by hand (pair_bound_2d.py), with LAMMPS's
+physics and with graindyn's, on the same lists and contacts.
 Prints microseconds per call: of wall time, or with ``--cpu`` of this process's CPU
 time (time.process_time: one thread on a machine other jobs share; with more threads
 it adds theirs up).  The kernels run on the settled bed, restored before each batch
 of calls.
 """
+import math
 import pathlib
 import sys
 import time
@@ -164,6 +167,37 @@ def main(argv):
         fn(2, *args)
         best = min(_timed(fn, reps, args, arrays, saved) for _ in range(5))
         print(f"{name:24s} {best * 1e6:9.2f} us")
+    if argv[0] == "silo2d":
+        _bounds(sim, reps)
+
+
+def _bounds(sim, reps):
+    """The silo bed's pair forces written out by hand (pair_bound_2d.py), timed on the
+    same lists and contact state: the physics of LAMMPS's law and of graindyn's."""
+    import lammps_silo_2d as silo
+    import pair_bound_2d as bound
+
+    state = sim.state
+    args = bound.loop_arguments(sim, silo.gamma_n(0.5 * float(state.masses.mean())))
+    history = args[7]
+    saved = history.copy()
+    for name, loop in (("LAMMPS's physics", bound.lammps_physics),
+                       ("graindyn's physics", bound.graindyn_physics)):
+        loop(*args)
+
+        @numba.njit
+        def calls(reps, args):
+            s = 0.0
+            for _ in range(reps):
+                s += loop(*args)
+            return s
+        best = math.inf
+        for _ in range(5):
+            np.copyto(history, saved)
+            t0 = CLOCK[0]()
+            calls(reps, args)
+            best = min(best, (CLOCK[0]() - t0) / reps)
+        print(f"pairs by hand, {name:18s} {best * 1e6:9.2f} us")
 
 
 def _arrays(item):
