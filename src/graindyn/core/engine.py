@@ -44,6 +44,21 @@ def checked_gravity(value, dim):
     return gravity
 
 
+def kinetic_energy(state):
+    """(translational, rotational) kinetic energy of the free grains [J]."""
+    free = state.fixed == 0
+    v2 = np.einsum("ij,ij->i", state.velocities, state.velocities)
+    w2 = np.einsum("ij,ij->i", state.angular_velocities, state.angular_velocities)
+    return (float(0.5 * np.sum(state.masses[free] * v2[free])),
+            float(0.5 * np.sum(state.inertias[free] * w2[free])))
+
+
+def gravitational_energy(state, gravity):
+    """-sum m g.r of the free grains [J] (zero at the origin)."""
+    free = state.fixed == 0
+    return float(-np.sum(state.masses[free] * (state.positions[free] @ np.asarray(gravity))))
+
+
 def copy_into(targets, arrays):
     """Put the snapshot ``arrays`` (name -> array) into an engine's own ``targets``
     (name -> array, the engine's arrays of those names), in place; ValueError naming

@@ -17,7 +17,7 @@ from ...core.engine import (Contacts, SimulationError, WallContacts, checked_gra
 from ...core.species import Material
 from ...core.walls import Walls
 from ...core.triggers import NO_CONDITION, pauses
-from ..soft.energy import rigid_energies
+from ..rigid import RigidGrains
 from . import stepping as st
 from .bundles import Grains, PeriodicBox, Tables, WallBundle, new_work
 from .detection import new_lists
@@ -58,7 +58,7 @@ def material_tables(materials):
                   rolling=np.sqrt(np.outer(mu_r, mu_r)).reshape(k, k))
 
 
-class ContactDynamics:
+class ContactDynamics(RigidGrains):
     """Rigid grains by contact dynamics (Moreau, Jean; Pérez Sec. 2 Eq. 11-12), SI units.
 
     state : core.state.State;  materials : list of core.species.Material (restitution
@@ -78,6 +78,9 @@ class ContactDynamics:
     above the tolerance after max_iterations sweeps; a run that adds some warns,
     RuntimeWarning, with ``worst_residual``).
     """
+
+    GRAVITY_SLOTS = st.GX
+    LOSS_SLOTS = (st.DISS_N, st.DISS_T, st.WALL_WORK)
 
     rigid = True        # rigid grains (engine.Engine.rigid)
 
@@ -354,23 +357,7 @@ class ContactDynamics:
         return WallContacts(grain, wall, -distance[:, None] * normal, normal_force,
                             force - normal_force[:, None] * normal, normal)
 
-    def energies(self):
-        """The energies of engine.ENERGIES [J]: kinetic, rotational and gravitational of
-        the free grains, elastic 0 (rigid grains), the dissipation split and the wall work
-        the loop accumulates (stepping.py)."""
-        return rigid_energies(self.state, self.gravity, self.clock[st.DISS_N],
-                              self.clock[st.DISS_T], self.clock[st.WALL_WORK])
-
     # ------------------------------------------------------------------ changes by hand
-    @property
-    def gravity(self):
-        """Gravitational acceleration (3,) [m/s^2] (a copy); acts from the next step."""
-        return self.clock[st.GX:st.GZ + 1].copy()
-
-    @gravity.setter
-    def gravity(self, value):
-        self.clock[st.GX:st.GZ + 1] = checked_gravity(value, self.state.dim)
-
     def _forget(self, chosen):
         """Zero the impulses of every listed contact of the grains ``chosen`` (N,) bool."""
         n = self.state.n
@@ -393,22 +380,6 @@ class ContactDynamics:
         chosen = np.zeros(s.n, bool)
         chosen[idx] = True
         self._forget(chosen)
-
-    def kick(self, indices, delta_v):
-        """Add ``delta_v`` [m/s] to the velocities of grains ``indices``
-        (engine.Engine.kick)."""
-        self.state.kick(indices, delta_v)
-
-    def hold(self, indices):
-        """Stop grains ``indices`` and hold them in place (engine.Engine.hold): obstacles
-        of infinite mass to the others, out of the energies, until ``release``."""
-        self.state.stop(indices)
-
-    def release(self, indices, positions, velocities, angular_velocities=None):
-        """Free held grains ``indices`` at ``positions`` with ``velocities``, as relocate
-        puts them (engine.Engine.release)."""
-        self.relocate(indices, positions, velocities, angular_velocities)
-        self.state.fixed[np.asarray(indices, dtype=np.int64).reshape(-1)] = 0
 
     def set_motion(self, wall, motion):
         """Prescribe ``motion`` (walls.Motion) to ``wall`` from now on

@@ -33,7 +33,7 @@ from ...core.species import Material
 from ...core.triggers import NO_CONDITION, pauses
 from ...core.walls import PISTON, SERVO, Walls
 from ..contact_dynamics.stepping import CONDITION, NAN, _stop
-from ..soft.energy import rigid_energies
+from ..rigid import RigidGrains
 from . import events as ev
 from ..contact_dynamics.bundles import PeriodicBox
 from .bundles import Cells, Grains, Tables, WallBundle
@@ -58,7 +58,7 @@ def restitution_table(materials):
     return np.sqrt(np.outer(e, e))
 
 
-class EventDriven:
+class EventDriven(RigidGrains):
     """Hard grains by event-driven molecular dynamics (Pérez Sec. 2, Eq. 1-10), SI units.
 
     state : core.state.State;  materials : list of core.species.Material (restitution
@@ -79,6 +79,9 @@ class EventDriven:
     Counters: ``collisions`` (grain pairs), ``wall_collisions``, ``events`` (all events,
     cell crossings and stale ones included); ``step`` is ``events``.
     """
+
+    GRAVITY_SLOTS = ev.GX
+    LOSS_SLOTS = (ev.DISS_N, ev.DISS_T, ev.WALL_WORK)
 
     rigid = True        # hard grains (engine.Engine.rigid)
 
@@ -401,45 +404,13 @@ class EventDriven:
         return WallContacts(grain.astype(np.int64), wall, -distance[:, None] * normal,
                             np.zeros(grain.size), np.zeros((grain.size, 3)), normal)
 
-    def energies(self):
-        """The energies of engine.ENERGIES [J]: kinetic, rotational and gravitational of
-        the free grains, elastic 0 (hard grains), the dissipation of the collisions'
-        normal and tangential parts, and the work of moving walls."""
-        return rigid_energies(self.state, self.gravity, self.clock[ev.DISS_N],
-                              self.clock[ev.DISS_T], self.clock[ev.WALL_WORK])
-
     # ------------------------------------------------------------------ changes by hand
-    @property
-    def gravity(self):
-        """Gravitational acceleration (3,) [m/s^2] (a copy); acts from now on."""
-        return self.clock[ev.GX:ev.GZ + 1].copy()
-
-    @gravity.setter
-    def gravity(self, value):
-        self.clock[ev.GX:ev.GZ + 1] = checked_gravity(value, self.state.dim)
-
     def relocate(self, indices, positions, velocities, angular_velocities=None):
         """Move grains ``indices`` to ``positions`` (K, 3) [m] with ``velocities`` (K, 3)
         [m/s] and ``angular_velocities`` (K, 3) [rad/s] (None: zero)
         (engine.Engine.relocate); hard grains carry no contact memory, and the next run
         predicts every event afresh."""
         self.state.move(indices, positions, velocities, angular_velocities)
-
-    def kick(self, indices, delta_v):
-        """Add ``delta_v`` [m/s] to the velocities of grains ``indices``
-        (engine.Engine.kick)."""
-        self.state.kick(indices, delta_v)
-
-    def hold(self, indices):
-        """Stop grains ``indices`` and hold them in place (engine.Engine.hold): obstacles
-        of infinite mass to the others, out of the energies, until ``release``."""
-        self.state.stop(indices)
-
-    def release(self, indices, positions, velocities, angular_velocities=None):
-        """Free held grains ``indices`` at ``positions`` with ``velocities``
-        (engine.Engine.release)."""
-        self.relocate(indices, positions, velocities, angular_velocities)
-        self.state.fixed[np.asarray(indices, dtype=np.int64).reshape(-1)] = 0
 
     def set_motion(self, wall, motion):
         """Prescribe ``motion`` (walls.Motion) to ``wall`` from now on

@@ -1,6 +1,6 @@
-"""The energies of a soft-particle simulation [J] that are not accumulated in its clock:
-kinetic (translational, rotational), gravitational, and elastic energy stored in the
-contacts (Simulation.energies gathers them with the dissipation the loop accumulates).
+"""The elastic energy stored in a soft-particle simulation's contacts [J]
+(Simulation.energies gathers it with the kinetic and gravitational energies of
+core.engine and the dissipation the loop accumulates).
 """
 import numpy as np
 
@@ -76,29 +76,3 @@ def elastic_energy(model_ids, params, state, walls, pairs, wall_pairs, images=No
                                        images.ids, images.history))
     return total
 
-
-def kinetic_energy(state):
-    """(translational, rotational) kinetic energy of the free grains [J]."""
-    free = state.fixed == 0
-    v2 = np.einsum("ij,ij->i", state.velocities, state.velocities)
-    w2 = np.einsum("ij,ij->i", state.angular_velocities, state.angular_velocities)
-    return (float(0.5 * np.sum(state.masses[free] * v2[free])),
-            float(0.5 * np.sum(state.inertias[free] * w2[free])))
-
-
-def rigid_energies(state, gravity, dissipated_normal, dissipated_tangential, wall_work):
-    """The energies of core.engine.ENERGIES [J] of grains that store no elastic energy
-    (rigid or hard grains): kinetic, rotational and gravitational of the free grains,
-    elastic 0, and the dissipation and wall work an engine accumulated."""
-    translational, rotational = kinetic_energy(state)
-    return {"kinetic": translational, "rotational": rotational,
-            "gravitational": gravitational_energy(state, gravity), "elastic": 0.0,
-            "dissipated_normal": float(dissipated_normal),
-            "dissipated_tangential": float(dissipated_tangential),
-            "wall_work": float(wall_work)}
-
-
-def gravitational_energy(state, gravity):
-    """-sum m g.r of the free grains [J] (zero at the origin)."""
-    free = state.fixed == 0
-    return float(-np.sum(state.masses[free] * (state.positions[free] @ np.asarray(gravity))))

@@ -12,7 +12,8 @@ import numba
 import numpy as np
 
 from ...core.engine import (Contacts, ImageContacts, OverlapError, SimulationError,
-                            WallContacts, checked_gravity)
+                            WallContacts, checked_gravity, gravitational_energy,
+                            kinetic_energy)
 from ...core.neighbors import list_owners
 from ...core.species import ContactModel, Material
 from ...core.symmetry import MASKS, SymmetryPlanes, rebuild_images
@@ -667,9 +668,9 @@ class Simulation:
         """The energies of engine.ENERGIES [J]: kinetic, rotational and gravitational of
         the free grains, elastic energy of the listed contacts (engines/soft/energy.py;
         half of each image contact's), and the dissipation and wall work the loop accumulates."""
-        translational, rotational = energy.kinetic_energy(self.state)
+        translational, rotational = kinetic_energy(self.state)
         return {"kinetic": translational, "rotational": rotational,
-                "gravitational": energy.gravitational_energy(self.state, self.gravity),
+                "gravitational": gravitational_energy(self.state, self.gravity),
                 "elastic": energy.elastic_energy(self.model_ids, self.params, self.state,
                                                  self.walls, self.pairs, self.wall_pairs,
                                                  self.images),
