@@ -17,7 +17,7 @@ from ...core.engine import (Contacts, SimulationError, WallContacts, checked_gra
 from ...core.species import Material
 from ...core.walls import Walls
 from ...core.triggers import NO_CONDITION, pauses
-from ..rigid import RigidGrains
+from ..rigid import CONDITION, NAN, RigidGrains
 from . import stepping as st
 from .bundles import Grains, PeriodicBox, Tables, WallBundle, new_work
 from .detection import new_lists
@@ -257,9 +257,9 @@ class ContactDynamics(RigidGrains):
                 for trigger, cb in every:
                     if trigger.fires(lambda p: self.step % periods[p] == 0, self.time):
                         cb(self)
-                if status == st.CONDITION:
+                if status == CONDITION:
                     return "condition"
-                if status == st.NAN:
+                if status == NAN:
                     raise SimulationError(
                         f"non-finite position or velocity at step {self.step} (t = "
                         f"{self.time:.6g} s): the contact solve failed (see not_converged "

@@ -45,14 +45,14 @@ import math
 import numpy as np
 
 from ..._jit import kernel, scalar
-from ...core.triggers import ENERGY_RATIO_BELOW, MAX_SPEED_BELOW
 from ...core.walls import PISTON, SERVO, walls_advance
+from ..rigid import DONE, stop_status
 from .detection import IMPULSE_WIDTH, contact_geometry, moved_beyond, relist
 from .solver import (apply_couple, apply_impulse, arm, contact_velocity, nlgs,
                      relative_spin)
 
 # return codes of advance
-DONE, CONDITION, GROW, NAN = 0, 1, 2, 3
+GROW = 2                 # the arrays must grow (rigid.py: DONE, CONDITION, NAN)
 # clock (float64) slots
 TIME, DT, THETA, GAP, MARGIN, GX, GY, GZ, TOLERANCE, COND_VALUE, DISS_N, DISS_T, \
     WALL_WORK, RESIDUAL, WORST_RESIDUAL = range(15)
@@ -291,44 +291,6 @@ def _move(positions, velocities, angular_velocities, orientations, old_velocitie
 
 
 @kernel
-def _stop(velocities, angular_velocities, positions, masses, inertias, fixed, gravity,
-          kind, value):
-    """NAN when some position or velocity is not finite, CONDITION when the stop
-    condition ``kind`` (core.triggers: largest speed below ``value`` [m/s], or kinetic
-    over gravitational energy above the lowest free grain at most ``value``) holds."""
-    vmax2 = 0.0
-    kinetic = 0.0
-    g = math.sqrt(gravity[0] ** 2 + gravity[1] ** 2 + gravity[2] ** 2)
-    low = math.inf
-    for i in range(masses.size):
-        for d in range(3):
-            if not (math.isfinite(positions[i, d]) and math.isfinite(velocities[i, d])):
-                return NAN
-        if fixed[i]:
-            continue
-        v2 = velocities[i, 0] ** 2 + velocities[i, 1] ** 2 + velocities[i, 2] ** 2
-        w2 = angular_velocities[i, 0] ** 2 + angular_velocities[i, 1] ** 2 \
-            + angular_velocities[i, 2] ** 2
-        vmax2 = max(vmax2, v2)
-        kinetic += 0.5 * masses[i] * v2 + 0.5 * inertias[i] * w2
-        if g > 0.0:
-            low = min(low, -(positions[i, 0] * gravity[0] + positions[i, 1] * gravity[1]
-                             + positions[i, 2] * gravity[2]) / g)
-    if kind == MAX_SPEED_BELOW and math.sqrt(vmax2) < value:
-        return CONDITION
-    if kind == ENERGY_RATIO_BELOW and g > 0.0:
-        potential = 0.0
-        for i in range(masses.size):
-            if not fixed[i]:
-                h = -(positions[i, 0] * gravity[0] + positions[i, 1] * gravity[1]
-                      + positions[i, 2] * gravity[2]) / g
-                potential += masses[i] * g * (h - low)
-        if kinetic <= value * potential:
-            return CONDITION
-    return DONE
-
-
-@kernel
 def _solved_rows(walls, t, dt):
     """The rows of the walls solved with the impulses in the step ending at ``t`` [s]
     (solver.solved_velocity), with the velocity walls_advance moved them at: the servo
@@ -438,8 +400,8 @@ def advance(grains, lists, walls, periodic, tables, work, clock, counters, nstep
         clock[WALL_WORK] += wall_work
         clock[TIME] += dt
         counters[STEP] += 1
-        status = _stop(velocities, spins, positions, grains.masses, grains.inertias,
-                       grains.fixed, gravity, counters[COND_KIND], clock[COND_VALUE])
+        status = stop_status(velocities, spins, positions, grains.masses, grains.inertias,
+                             grains.fixed, gravity, counters[COND_KIND], clock[COND_VALUE])
         if status != DONE:
             return status, s + 1
     return DONE, nsteps

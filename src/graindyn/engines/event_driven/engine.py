@@ -32,8 +32,7 @@ from ...core.engine import (Contacts, SimulationError, WallContacts, checked_gra
 from ...core.species import Material
 from ...core.triggers import NO_CONDITION, pauses
 from ...core.walls import PISTON, SERVO, Walls
-from ..contact_dynamics.stepping import CONDITION, NAN, _stop
-from ..rigid import RigidGrains
+from ..rigid import CONDITION, NAN, RigidGrains, stop_status
 from . import events as ev
 from ..contact_dynamics.bundles import PeriodicBox
 from .bundles import Cells, Grains, Tables, WallBundle
@@ -330,9 +329,9 @@ class EventDriven(RigidGrains):
                 if trigger.fires(lambda p: due[p], self.time):
                     cb(self)
             s = self.state
-            status = _stop(s.velocities, s.angular_velocities, s.positions, s.masses,
-                           s.inertias, s.fixed, self.clock[ev.GX:ev.GZ + 1], kind,
-                           until.value if until is not None else 0.0)
+            status = stop_status(s.velocities, s.angular_velocities, s.positions, s.masses,
+                                 s.inertias, s.fixed, self.clock[ev.GX:ev.GZ + 1], kind,
+                                 until.value if until is not None else 0.0)
             if status == NAN:
                 raise SimulationError(f"non-finite position or velocity at t = "
                                       f"{self.time:.6g} s")
