@@ -39,6 +39,7 @@ is a few grain masses or more.
 """
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -341,6 +342,19 @@ class Periodic:
     hi: float
 
 
+class PeriodicBox(NamedTuple):
+    """The periodic directions as every engine's compiled loops read them
+    (Walls.periodic_box).
+
+    flag : (3,) int64, 1 along a periodic axis
+    lo : (3,) float64 [m] lower bound of the periodic cell along each axis
+    length : (3,) float64 [m] its length (0 along a non-periodic axis)
+    """
+    flag: np.ndarray
+    lo: np.ndarray
+    length: np.ndarray
+
+
 class Walls:
     """The walls of a simulation, as kernel arrays, plus periodic directions.  The
     layers above an engine read them; they move walls through the engine's set_motion,
@@ -375,6 +389,11 @@ class Walls:
 
     def __len__(self):
         return len(self.walls)
+
+    def periodic_box(self):
+        """The periodic directions (PeriodicBox of this object's arrays)."""
+        return PeriodicBox(flag=self.periodic_flag, lo=self.periodic_lo,
+                           length=self.periodic_length)
 
     def distances(self, points, ids):
         """Distance [m] from wall ids[k] to points[k] and the unit normal from the wall to

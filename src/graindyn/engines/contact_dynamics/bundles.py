@@ -49,13 +49,6 @@ class WallBundle(NamedTuple):
     push: np.ndarray
 
 
-class PeriodicBox(NamedTuple):
-    """flag (3,) int64, lo (3,) [m], length (3,) [m] of the periodic directions."""
-    flag: np.ndarray
-    lo: np.ndarray
-    length: np.ndarray
-
-
 class Tables(NamedTuple):
     """Per pair of materials (grain or wall): restitution (M, M) [-] (Newton's e_n),
     friction (M, M, 2) [-] (mu_s, mu_d), rolling (M, M) [-] (mu_r)."""

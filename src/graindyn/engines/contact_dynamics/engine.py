@@ -19,7 +19,7 @@ from ...core.walls import Walls
 from ...core.triggers import NO_CONDITION, pauses
 from ..rigid import CONDITION, NAN, RigidGrains
 from . import stepping as st
-from .bundles import Grains, PeriodicBox, Tables, WallBundle, new_work
+from .bundles import Grains, Tables, WallBundle, new_work
 from .detection import new_lists
 
 # rewritten every step before they are read: not part of a snapshot
@@ -161,8 +161,7 @@ class ContactDynamics(RigidGrains):
                           push=self._push)
 
     def _periodic(self):
-        w = self.walls
-        return PeriodicBox(flag=w.periodic_flag, lo=w.periodic_lo, length=w.periodic_length)
+        return self.walls.periodic_box()
 
     # ------------------------------------------------------------------ running
     @property

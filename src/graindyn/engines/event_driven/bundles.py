@@ -1,6 +1,6 @@
 """The bundles of arrays the event loop (events.py) is handed, by name (namedtuples of
 arrays: numba compiles them as tuples and reads fields by name).  N grains, W walls,
-M materials, C cells; the periodic box is contact_dynamics.bundles.PeriodicBox."""
+M materials, C cells; the periodic box is core.walls.PeriodicBox."""
 from typing import NamedTuple
 
 import numpy as np

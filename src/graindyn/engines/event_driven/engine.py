@@ -34,7 +34,6 @@ from ...core.triggers import NO_CONDITION, pauses
 from ...core.walls import PISTON, SERVO, Walls
 from ..rigid import CONDITION, NAN, RigidGrains, stop_status
 from . import events as ev
-from ..contact_dynamics.bundles import PeriodicBox
 from .bundles import Cells, Grains, Tables, WallBundle
 from .calendar import calendar_for
 from .collision import COLLAPSE
@@ -165,8 +164,7 @@ class EventDriven(RigidGrains):
                           self._wall_impulse)
 
     def _box(self):
-        w = self.walls
-        return PeriodicBox(w.periodic_flag, w.periodic_lo, w.periodic_length)
+        return self.walls.periodic_box()
 
     def _cells(self):
         """The cell grid of the grains as they are: cells at least a largest diameter

@@ -191,18 +191,6 @@ def wall_bundle(walls, reference_offset, wall_pairs):
                       **{WALL_CONTACT_FIELDS[k]: v for k, v in wall_pairs._asdict().items()})
 
 
-class PeriodicBox(NamedTuple):
-    """Periodic directions (Walls.periodic_*).
-
-    flag : (3,) int64, 1 along a periodic axis
-    lo : (3,) float64 [m] lower bound of the periodic cell along each axis
-    length : (3,) float64 [m] its length (0 along a non-periodic axis)
-    """
-    flag: np.ndarray
-    lo: np.ndarray
-    length: np.ndarray
-
-
 class LawWorkspace(NamedTuple):
     """The batched law's scratch for the CPU's contact loops (law_loop.workspace,
     made ready by law_loop.prepare; contacts.contact_forces).

@@ -20,8 +20,8 @@ pairs) and WALL_COLLISIONS, at every evaluation of a step but not at the priming
 one, whose contacts were there when the run (or a relocation) put the grains.
 
 The kernels take their arrays in the named bundles of engines/soft/bundles.py (grains:
-Grains, pairs: Pairs, walls: WallBundle, periodic: PeriodicBox, images: Images, law:
-LawWorkspace) and
+Grains, pairs: Pairs, walls: WallBundle, images: Images, law: LawWorkspace) and of
+core.walls (periodic: PeriodicBox), and
 read them by field name (``grains.radii``, ``walls.offset``).
 
 run_chunk and what it calls every step are compiled without reference counting

@@ -20,7 +20,7 @@ from ...core.symmetry import MASKS, SymmetryPlanes, rebuild_images
 from ...core.triggers import NO_CONDITION, pauses
 from ...core.walls import Walls
 from . import energy, loop
-from .bundles import Grains, Images, Pairs, PeriodicBox, WallPairs, wall_bundle
+from .bundles import Grains, Images, Pairs, WallPairs, wall_bundle
 from .contacts import block_count
 from .integrators import SCHEMES, SLOTS, history_names, integrator_id
 from .law_loop import law_address, prepare, workspace as law_workspace
@@ -300,9 +300,8 @@ class Simulation:
         return wall_bundle(self.walls, self.reference_offset, self.wall_pairs)
 
     def _periodic(self):
-        """The periodic directions (bundles.PeriodicBox)."""
-        w = self.walls
-        return PeriodicBox(flag=w.periodic_flag, lo=w.periodic_lo, length=w.periodic_length)
+        """The periodic directions (core.walls.PeriodicBox)."""
+        return self.walls.periodic_box()
 
     # ------------------------------------------------------------------ running
     @property
