@@ -168,7 +168,7 @@ def test_rotation_series_matches_the_trigonometric_rotation(angle):
     """Below |p| = 0.2 rad the exact rotation takes its coefficients from Taylor series:
     on both sides of that switch it equals the quaternion product with
     (cos(|p|/2), sin(|p|/2) p/|p|), written out here independently, to round-off."""
-    from graindyn.engines.soft.integrators.rotation import rotate_quaternion
+    from graindyn.core.rotation import rotate_quaternion
 
     rng = np.random.default_rng(7)
     for _ in range(20):

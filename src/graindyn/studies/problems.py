@@ -6,7 +6,7 @@ import numpy as np
 from ..core.species import ContactModel, Material
 from ..core.state import State
 from ..core.walls import Plane
-from ..engines.soft.integrators.rotation import quaternion_leapfrog
+from ..core.rotation import quaternion_leapfrog
 from ..engines.soft.simulation import Simulation
 
 RADIUS = 0.01       # m

@@ -27,7 +27,7 @@ import math
 import numpy as np
 
 from ..._jit import block_body, driver
-from ..soft.integrators.rotation import rotate_quaternion
+from ...core.rotation import rotate_quaternion
 from . import flight
 from .calendar import build, front, reschedule
 from .collision import TC as TC_MODEL, collision_impulse, contact_velocity, restitution_now

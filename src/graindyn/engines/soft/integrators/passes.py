@@ -4,7 +4,7 @@ integer id (ids.py).  A step of integrator k: for each stage s < STAGES[k]:
 never move.  Rotation uses each scheme's own formulas on the rotation vector (w for v,
 alpha = torque/I for a: spheres and disks have isotropic inertia, so Euler's equations
 reduce to I dw/dt = torque in any frame) and turns the orientation by the exact
-rotation of that increment (rotation.rotate_quaternion); leap_frog turns it with
+rotation of that increment (core.rotation.rotate_quaternion); leap_frog turns it with
 Omelyan's quaternion leap-frog instead (Oquendo Eq. 16-18).
 
 ``history`` (slots, N, 3): the scheme's history, translational slots first, then the
@@ -19,12 +19,12 @@ import numpy as np
 
 from ...._jit import block, block_body, parallel, prange, scalar
 from ....core.neighbors import min_image
+from ....core.rotation import quaternion_leapfrog, rotate_quaternion
 from ..contacts import gather_pairs, largest
 from .beeman import beeman_correct, beeman_drift
 from .gear import gear_correct, gear_drift
 from .ids import (BEEMAN, GEAR3, LEAP_FROG, OPTIMIZED_VELOCITY_VERLET, SLOTS,
                   VELOCITY_VERLET)
-from .rotation import quaternion_leapfrog, rotate_quaternion
 from .verlet import verlet_correct, verlet_drift
 
 

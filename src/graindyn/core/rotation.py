@@ -9,7 +9,7 @@ additions round at the scale of q, with signs that vary as q turns.
 """
 import math
 
-from ...._jit import scalar
+from .._jit import scalar
 
 
 @scalar
