@@ -148,7 +148,7 @@ def test_open_pair_with_only_a_stale_torque_is_cleared(one_thread):
     (a repulsive-only law at rest gives exactly zero) and an old torque: the pair loop
     must clear it, or the gather adds it to a grain of another block."""
     sim = bed(("hooke", "linear", "cundall_strack"))
-    g, p, per = sim._grains(), sim.pairs, sim._periodic()
+    g, p = sim._grains(), sim.pairs
     n, start, partners = sim.state.n, p.start, p.partners
     nblock = 2
     first = np.repeat(np.arange(n), np.diff(start))

@@ -1,13 +1,10 @@
 """A tiny deposition config (30 grains, 0.01 s: a few thousand steps) and sweep files
-around it, a stand-in for analysis.bauer.fit_power_law until that module lands, and
-``python -m graindyn`` as a subprocess."""
+around it, and ``python -m graindyn`` as a subprocess."""
 import copy
 import signal
 import subprocess
 import sys
-import types
 
-import numpy as np
 import pytest
 import tomli_w
 
@@ -56,39 +53,3 @@ def cli(*args, **kw):
     return subprocess.Popen([sys.executable, "-m", "graindyn", *map(str, args)],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             start_new_session=True, preexec_fn=_default_sigint, **kw)
-
-
-class _PowerLaw:
-    def __init__(self, a, a_err, b, b_err, points):
-        self.a, self.a_err, self.b, self.b_err, self.points = a, a_err, b, b_err, points
-
-    def as_dict(self):
-        return {"a": self.a, "a_err": self.a_err, "b": self.b, "b_err": self.b_err,
-                "points": self.points}
-
-
-def _fit_power_law(x, y, y_err=None):
-    """Stand-in: weighted least squares of ln y on ln x (weights (y/y_err)^2)."""
-    x, y = np.asarray(x, float), np.asarray(y, float)
-    w = np.ones_like(y) if y_err is None else (y / np.asarray(y_err, float)) ** 2
-    design = np.column_stack([np.ones_like(x), np.log(x)])
-    normal = design.T @ (w[:, None] * design)
-    coef = np.linalg.solve(normal, design.T @ (w * np.log(y)))
-    residual = np.log(y) - design @ coef
-    dof = max(1, x.size - 2)
-    cov = np.linalg.inv(normal) * (np.sum(w * residual**2) / dof)
-    a = float(np.exp(coef[0]))
-    return _PowerLaw(a, a * float(np.sqrt(cov[0, 0])), float(coef[1]),
-                     float(np.sqrt(cov[1, 1])), int(x.size))
-
-
-@pytest.fixture
-def power_law(monkeypatch):
-    """graindyn.analysis.bauer.fit_power_law: the real one once it exists, else the
-    stand-in above."""
-    try:
-        from graindyn.analysis.bauer import fit_power_law  # noqa: F401
-    except ImportError:
-        module = types.ModuleType("graindyn.analysis.bauer")
-        module.fit_power_law = _fit_power_law
-        monkeypatch.setitem(sys.modules, "graindyn.analysis.bauer", module)

@@ -164,7 +164,7 @@ def test_combine_takes_the_larger_of_spread_and_fit_error():
     assert err == pytest.approx(2.5)                          # sqrt(9 + 16) / 2
 
 
-def test_oedometer_summary_tables_figure_and_fit(fake, monkeypatch, power_law):
+def test_oedometer_summary_tables_figure_and_fit(fake, monkeypatch):
     sweep, out, truth = fake
     # the oedometer's summary, given to this protocol
     monkeypatch.setattr(Deposition, "summarize_sweep",
@@ -206,7 +206,7 @@ def test_oedometer_summary_tables_figure_and_fit(fake, monkeypatch, power_law):
     assert summary["guamo"]["h_s_MPa"] == 19.1 and summary["paper_fit"]["b"] == -9.88
 
 
-def test_oedometer_summary_without_enough_points(tmp_path, power_law):
+def test_oedometer_summary_without_enough_points(tmp_path):
     sweep = Sweep.load(write_sweep(tmp_path, {"seeds": [1]}))
     out = tmp_path / "out"
     (out / "reference" / "seed-1").mkdir(parents=True)
