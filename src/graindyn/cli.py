@@ -77,13 +77,24 @@ def run(
 
 
 @app.command()
-def validate(config: Annotated[pathlib.Path, typer.Argument(help="TOML config to check.")]):
-    """Check a config without simulating: exit 0 when it can run, 2 otherwise."""
+def validate(config: Annotated[pathlib.Path, typer.Argument(
+        help="TOML config, or sweep file (one with a base = ...), to check.")]):
+    """Check a config without simulating: exit 0 when it can run, 2 otherwise.  A sweep
+    file (docs/sweeps.md) is checked as ``graindyn sweep --dry-run`` checks it: its base
+    config and every point's config."""
     from .config import ConfigError, load
+    from .config.load import read_toml
     from .engines import ENGINES
     from .runner import check
+    from .sweep import Sweep
 
     try:
+        if "base" in read_toml(config):
+            plan = Sweep.load(config)
+            typer.echo(f"{config}: ok, a sweep of {len(plan.points)} points, "
+                       f"{len(plan.runs)} runs, on {plan.base_path}\n  graindyn sweep "
+                       f"{config} --dry-run lists them")
+            return
         cfg = load(config)
         report = check(cfg)
     except ConfigError as err:

@@ -89,6 +89,22 @@ def test_good_config_validates(small_config, write_config):
     assert "Rayleigh time" in result.output
 
 
+def test_sweep_file_validates_every_point(small_config, write_config, tmp_path):
+    """A sweep file is checked as a sweep (its base and every point), not refused as a
+    config lacking grains; a bad value of one point is named with its point."""
+    base = write_config(small_config)
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text(f'base = "{base}"\nseeds = [1, 2]\n[[vary]]\n'
+                     'parameter = "grains.count"\nvalues = [20, 40]\n')
+    result = runner.invoke(app, ["validate", str(sweep)])
+    assert result.exit_code == 0, result.output
+    assert "a sweep of" in result.output and "6 runs" in result.output
+    sweep.write_text(f'base = "{base}"\n[[vary]]\nparameter = "grains.count"\n'
+                     'values = [20, 0]\n')
+    result = runner.invoke(app, ["validate", str(sweep)])
+    assert result.exit_code == 2 and "vary.0 grains.count = 0" in result.output
+
+
 def test_message_gives_value_and_range(small_config):
     small_config["grains"]["count"] = 0
     with pytest.raises(ConfigError) as err:
