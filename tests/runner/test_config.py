@@ -105,6 +105,20 @@ def test_sweep_file_validates_every_point(small_config, write_config, tmp_path):
     assert result.exit_code == 2 and "vary.0 grains.count = 0" in result.output
 
 
+def test_sweep_file_and_run_config_each_sent_to_its_command(small_config, write_config,
+                                                           tmp_path):
+    """`graindyn run` on a sweep file and `graindyn sweep` on a run config each say what
+    the file is and which command takes it, nothing started."""
+    config = write_config(small_config)
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text(f'base = "{config}"\n')
+    result = runner.invoke(app, ["run", str(sweep), "--out", str(tmp_path / "run")])
+    assert result.exit_code == 2 and "graindyn sweep" in result.output, result.output
+    result = runner.invoke(app, ["sweep", str(config), "--out", str(tmp_path / "sw")])
+    assert result.exit_code == 2 and "graindyn run" in result.output, result.output
+    assert not (tmp_path / "run").exists() and not (tmp_path / "sw").exists()
+
+
 def test_message_gives_value_and_range(small_config):
     small_config["grains"]["count"] = 0
     with pytest.raises(ConfigError) as err:

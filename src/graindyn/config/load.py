@@ -87,8 +87,13 @@ def read_toml(path, what="config"):
 
 
 def load(path) -> Config:
-    """Read and validate a TOML config file."""
-    return validate(read_toml(path), str(path))
+    """Read and validate a TOML config file (ConfigError for a sweep file, which names a
+    base config instead of being one)."""
+    data = read_toml(path)
+    if "base" in data and "grains" not in data:
+        raise ConfigError(f"{path}: a sweep file (it names a base config), not a run "
+                          f"config: run it with `graindyn sweep {path}`")
+    return validate(data, str(path))
 
 
 def dumps(config: Config) -> str:

@@ -149,6 +149,9 @@ def load_sweep_file(path) -> SweepFile:
     """Read and check a sweep file; ConfigError naming every problem otherwise."""
     path = pathlib.Path(path)
     data = read_toml(path, "sweep")
+    if "base" not in data and "grains" in data:
+        raise ConfigError(f"{path}: a run config, not a sweep file (a sweep file names its "
+                          f"base config: base = ...): run it with `graindyn run {path}`")
     try:
         return SweepFile.model_validate(data)
     except ValidationError as err:
