@@ -269,7 +269,8 @@ def restored(rundir, config, warn=print):
 
 def resume(out, show_progress=True, echo=print, threads=None, backend=None):
     """Continue the run in ``out`` from its last good checkpoint, on ``backend`` (cpu or
-    gpu; default: the run's own); returns its results."""
+    gpu; default: the run's own); returns its results.  A run that finished (every phase
+    done, results.json written) is left as it is and its results returned."""
     rundir = RunDirectory(out)
     config = load(rundir.path / "config.toml")
     if backend is not None and backend != config.run.backend:
@@ -279,6 +280,15 @@ def resume(out, show_progress=True, echo=print, threads=None, backend=None):
     threads, why = _threads(threads or started.get("threads"),
                             started.get("grains", config.grains.count))
     protocol, engine, meta, step, t = restored(rundir, config, warn=echo)
+    if meta["protocol"]["phase"] >= len(protocol.phases) \
+            and (rundir.path / "results.json").is_file():
+        try:
+            echo(f"{rundir.path} finished at t = {t:.6g} s (step {step}): nothing to "
+                 "resume, its files are left as they are (graindyn plot redraws its "
+                 "figures)")
+            return rundir.results()
+        finally:
+            rundir.close()
     rng = np.random.default_rng()
     rng.bit_generator.state = meta["rng"]
     rundir.log(f"resume from t = {t:.6g} s (step {step}), {_threading_line(threads, why)}, "

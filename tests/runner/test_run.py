@@ -130,6 +130,17 @@ def test_resume_without_checkpoint_is_a_clear_error(tmp_path, small_config, writ
     assert result.exit_code == 2 and "no checkpoint" in result.output
 
 
+def test_resume_of_a_finished_run_leaves_it_as_it_is(finished):
+    """--resume of a run that finished says so and changes none of its files (its
+    results keep the timing of the session that ran it)."""
+    names = ("results.json", "run.log", "series.csv")
+    before = {name: (finished / name).read_bytes() for name in names}
+    result = runner.invoke(app, ["run", "--resume", str(finished)])
+    assert result.exit_code == 0, result.output
+    assert "nothing to resume" in result.output
+    assert {name: (finished / name).read_bytes() for name in names} == before
+
+
 def test_info_lists_backends_and_cache():
     result = runner.invoke(app, ["info"])
     assert result.exit_code == 0
