@@ -21,6 +21,20 @@ def _fail(message, code=2):
     raise typer.Exit(code)
 
 
+def _run_directory(path):
+    """``path`` if it holds a run (its config.toml); otherwise a clear failure, naming a
+    sweep's folder or a study's for what it is."""
+    if not path.is_dir():
+        _fail(f"{path}: no such run directory")
+    if not (path / "config.toml").is_file():
+        if (path / "points.json").is_file() or (path / "summary.csv").is_file():
+            _fail(f"{path}: a sweep's or a study's folder, not a run directory: its runs "
+                  "are the folders below it (graindyn sweep SWEEP.toml --summarize "
+                  "redraws a sweep's tables and figures)")
+        _fail(f"{path}: not a run directory (no config.toml)")
+    return path
+
+
 @app.command()
 def run(
     config: Annotated[Optional[pathlib.Path], typer.Argument(
@@ -55,8 +69,8 @@ def run(
         if backend not in (None, "cpu", "gpu"):
             _fail(f"--backend = {backend!r}: choose cpu or gpu")
         if resume is not None:
-            results = resume_run(resume, show_progress=progress, echo=typer.echo,
-                                 threads=threads, backend=backend)
+            results = resume_run(_run_directory(resume), show_progress=progress,
+                                 echo=typer.echo, threads=threads, backend=backend)
         else:
             cfg = load(config)
             if threads is not None:
@@ -168,7 +182,7 @@ def plot(rundir: Annotated[pathlib.Path, typer.Argument(help="A finished run dir
     from .runner import draw
 
     try:
-        cfg = load(rundir / "config.toml")
+        cfg = load(_run_directory(rundir) / "config.toml")
         paths = draw(RunDirectory(rundir), build.protocol(cfg))
     except (ConfigError, FileNotFoundError) as err:
         _fail(err)

@@ -141,6 +141,20 @@ def test_resume_of_a_finished_run_leaves_it_as_it_is(finished):
     assert {name: (finished / name).read_bytes() for name in names} == before
 
 
+def test_plot_and_resume_name_a_folder_that_is_no_run(tmp_path):
+    """plot and --resume on a missing folder, a folder without a run, and a sweep's
+    folder: one clear message each, exit 2."""
+    sweep = tmp_path / "sweep"
+    sweep.mkdir()
+    (sweep / "points.json").write_text("[]")
+    for folder, words in ((tmp_path / "nope", "no such run directory"),
+                          (tmp_path, "not a run directory"),
+                          (sweep, "a sweep's or a study's folder")):
+        for args in (["plot", str(folder)], ["run", "--resume", str(folder)]):
+            result = runner.invoke(app, args)
+            assert result.exit_code == 2 and words in result.output, (args, result.output)
+
+
 def test_info_lists_backends_and_cache():
     result = runner.invoke(app, ["info"])
     assert result.exit_code == 0
