@@ -13,7 +13,17 @@ from .core.walls import (Cylinder, Disk, Motion, Periodic as PeriodicBoundary, P
 from .engines.soft.ensemble import Ensemble
 from .engines.soft.simulation import Simulation, SimulationError
 
-__all__ = ["Simulation", "SimulationError", "Ensemble", "ContactModel", "Material", "State",
+
+def open_run(path):
+    """A run directory read back: its config, meta data, results, time series and the
+    engine at its last checkpoint (runner.RunRecord; the runner is imported here, not
+    with the package, as it brings the config layer)."""
+    from .runner import RunRecord
+
+    return RunRecord(path)
+
+
+__all__ = ["open_run", "Simulation", "SimulationError", "Ensemble", "ContactModel", "Material", "State",
            "cell_order", "sample_radii", "EnergyRatioBelow", "MaxSpeedBelow", "Periodic", "Cylinder",
            "Disk", "Motion", "PeriodicBoundary", "Plane", "Segment", "Symmetry", "box",
            "__version__"]

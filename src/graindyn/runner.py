@@ -8,7 +8,9 @@ SIGTERM, after which it raises RunInterrupted).  Chunks end on the same steps wh
 or not the run is cut, so a resumed run gives the same numbers to the last bit as an
 uninterrupted one (same backend and thread count).
 """
+import json
 import math
+import pathlib
 import signal
 import threading
 import time
@@ -265,6 +267,34 @@ def restored(rundir, config, warn=print):
         raise checkpoint.CheckpointError(f"{rundir.path}: the checkpoint does not fit this "
                                          f"run's config: {err}") from None
     return protocol, engine, meta, step, t
+
+
+class RunRecord:
+    """A run directory read back for analysis: ``config`` (the resolved Config), ``meta``
+    (version, commit, seed, machine, threads), ``results`` (results.json; None while the
+    run has not finished), ``series`` ({column with its unit: array}, series.csv), and
+    ``engine()``, the run's engine as its last good checkpoint left it (grains, walls,
+    contacts with their history; ``engine().contacts()`` and ``engine().state`` to
+    analyse, ``engine().run(...)`` to compute on from there)."""
+
+    def __init__(self, path):
+        self.path = pathlib.Path(path)
+        if not (self.path / "config.toml").is_file():
+            raise FileNotFoundError(f"{self.path}: not a run directory (no config.toml)")
+        self.config = load(self.path / "config.toml")
+        self.meta = json.loads((self.path / "meta.json").read_text())
+        results = self.path / "results.json"
+        self.results = json.loads(results.read_text()) if results.is_file() else None
+        table = self.path / "series.csv"
+        self.series = Series(table).read() if table.is_file() else {}
+
+    def engine(self, warn=print):
+        """The engine at the run's last good checkpoint (CheckpointError if none)."""
+        rundir = RunDirectory(self.path)
+        try:
+            return restored(rundir, self.config, warn=warn)[1]
+        finally:
+            rundir.close()
 
 
 def resume(out, show_progress=True, echo=print, threads=None, backend=None):

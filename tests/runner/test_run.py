@@ -155,6 +155,25 @@ def test_plot_and_resume_name_a_folder_that_is_no_run(tmp_path):
             assert result.exit_code == 2 and words in result.output, (args, result.output)
 
 
+def test_open_run_reads_a_run_back(finished):
+    """graindyn.open_run: the config, meta data, results and series of the files, and the
+    engine as the last checkpoint holds it (the same grains to the bit)."""
+    import graindyn as gd
+
+    record = gd.open_run(finished)
+    assert record.results == json.loads((finished / "results.json").read_text())
+    assert record.meta["seed"] == 3 and record.config.run.seed == 3
+    time = record.series["time [s]"]
+    assert time.size >= 3 and np.all(np.diff(time) > 0)
+    engine = record.engine()
+    arrays, _, step, t = checkpoint.latest(finished / "checkpoints")
+    assert engine.time == t and engine.step == step
+    assert np.array_equal(engine.state.positions, arrays["grains/positions"])
+    assert len(engine.contacts().normal_force) > 0
+    with pytest.raises(FileNotFoundError, match="not a run directory"):
+        gd.open_run(finished / "figures")
+
+
 def test_info_lists_backends_and_cache():
     result = runner.invoke(app, ["info"])
     assert result.exit_code == 0
