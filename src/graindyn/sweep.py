@@ -568,8 +568,11 @@ def _dask_client(scheduler, workers, threads, jobs, client):
         return
     n = workers or max(1, _local_cores() // threads)
     n = max(1, min(n, jobs))
+    # distributed's logs below CRITICAL silenced: a point that fails comes back
+    # through its future (error.txt, the report), and a worker whose last heartbeat
+    # races the scheduler's close at the end logs a traceback at ERROR that says nothing
     with LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                      dashboard_address=":0", silence_logs=logging.ERROR) as cluster, \
+                      dashboard_address=":0", silence_logs=logging.CRITICAL) as cluster, \
             Client(cluster) as c:
         c.register_plugin(_IgnoreInterrupt(), name="graindyn-ignore-sigint")
         try:
