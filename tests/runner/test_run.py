@@ -128,6 +128,8 @@ def test_resume_without_checkpoint_is_a_clear_error(tmp_path, small_config, writ
     (run / "meta.json").write_text("{}")
     result = runner.invoke(app, ["run", "--resume", str(run)])
     assert result.exit_code == 2 and "no checkpoint" in result.output
+    # a run's record without checkpoints (as a sweep's keep folder holds) gets nothing
+    assert sorted(p.name for p in run.iterdir()) == ["config.toml", "meta.json"]
 
 
 def test_resume_of_a_finished_run_leaves_it_as_it_is(finished):

@@ -106,7 +106,8 @@ class RunDirectory:
         self.checkpoints = self.path / "checkpoints"
         self.logger = logging.getLogger(f"graindyn.run.{self.path.resolve()}")
         if not self.logger.handlers and self.path.exists():
-            handler = logging.FileHandler(self.path / "run.log")
+            # opened on the first line logged, so reading a run back changes nothing
+            handler = logging.FileHandler(self.path / "run.log", delay=True)
             handler.setFormatter(logging.Formatter("%(asctime)s %(message)s"))
             self.logger.addHandler(handler)
             self.logger.setLevel(logging.INFO)
