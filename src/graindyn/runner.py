@@ -165,6 +165,9 @@ class _Driver:
                 self.state["phase"] += 1
                 self.rundir.log(f"phase {phase.name} ended at t = {engine.time:.6g} s "
                                 f"(step {engine.step})")
+                verdict = phase.verdict(progress)
+                if verdict:
+                    self.rundir.log(f"phase {phase.name}: {verdict}")
                 self.write_checkpoint()
         self.write_all(engine)
         seconds = time.perf_counter() - wall

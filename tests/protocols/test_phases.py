@@ -60,6 +60,7 @@ def test_a_protocol_of_existing_phases_runs_from_a_config(settle_hold, tmp_path)
     assert settle["reached"]
     log = (tmp_path / "run" / "run.log").read_text()
     assert "phase settle ended" in log and "phase hold ended" in log
+    assert "phase settle:" not in log            # a verdict only when the criterion fails
     series = np.genfromtxt(tmp_path / "run" / "series.csv", delimiter=",", names=True)
     t_end = series["time_s"][-1]
     assert t_end == pytest.approx(settle["time_s"] + 0.01, abs=2 * results["dt_s"])
@@ -71,6 +72,22 @@ def test_a_protocol_of_existing_phases_runs_from_a_config(settle_hold, tmp_path)
     assert series["force_zlo_N"][-1] == pytest.approx(weight, rel=0.1)
     meta = json.loads((tmp_path / "run" / "meta.json").read_text())
     assert meta["engine"] == "soft"
+
+
+def test_a_settling_cut_short_says_so_in_the_run_log(settle_hold, tmp_path):
+    """Settling stopped by max_time while the grains still fall: the run log says that
+    the criterion was not met and at what E_kin/E_pot, the report names no grains (the
+    whole bed still moves)."""
+    data = {**SMALL, "protocol": {"kind": "settle_hold", "max_time": 0.01, "hold": 0.0},
+            "output": {"series_every": 2e-3, "figures": False}}
+    results = execute(validate(data), tmp_path / "run", show_progress=False,
+                      echo=lambda *a: None)
+    settle = results["settle"]
+    assert not settle["reached"] and settle["kinetic_holders"] == []
+    assert settle["energy_ratio"] > 1e-6
+    log = (tmp_path / "run" / "run.log").read_text()
+    assert (f"phase settle: EnergyRatioBelow(ratio=1e-06) not met in 0.01 s: E_kin/E_pot = "
+            f"{settle['energy_ratio']:.3g}") in log
 
 
 def test_grains_settled_without_friction_pack_denser(tmp_path):

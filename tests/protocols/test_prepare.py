@@ -70,3 +70,47 @@ def test_settled_bed_carries_its_weight(rng):
     assert np.mean(samples) / report["total_weight_N"] == pytest.approx(1.0, abs=2e-3)
     assert 0.45 < report["packing_fraction"] < 0.64
     assert 3.0 < report["coordination_number"] < 7.0
+
+
+def _spinner(tangential, twisting):
+    """A grain resting on a held grain straight below it, spinning about the vertical
+    line through both, and a grain on the floor beside them; no sliding at the
+    spinner's contact (the spin axis is its normal), so only a twisting law can stop
+    it."""
+    r = 1e-3
+    pos = np.array([[5e-3, 5e-3, 2 * r], [5e-3, 5e-3, 4 * r], [2e-3, 2e-3, r]])
+    st = gd.State.create(pos, np.full(3, r), 2650.0)
+    st.fixed[0] = 1
+    st.angular_velocities[1] = (0.0, 0.0, 100.0)
+    grain = gd.Material(density=2650.0, youngs_modulus=1e7, poisson_ratio=0.3,
+                        restitution=0.5, friction_sliding=0.5, tangential_damping=1.0,
+                        gamma_nt=2e4)
+    model = gd.ContactModel("hertz", "tsuji", tangential, twisting=twisting)
+    return gd.Simulation(st, [grain], model, walls=gd.box((0, 0, 0), (1e-2, 1e-2, 2e-2)))
+
+
+def test_a_settling_held_up_by_a_spinning_grain_says_which_grain():
+    """Without twisting resistance the spinner keeps its rotational energy for ever:
+    the criterion is not met, and the report and the settle phase's log line name the
+    grain, which slips nowhere.  With Oquendo's viscous twisting law (Eq. 2) the same
+    grain stops and the criterion is met."""
+    from graindyn.protocols.phases import Settle, SettleSettings
+
+    sim = _spinner("mindlin", "none")
+    spin = 0.5 * sim.state.inertias[1] * 100.0**2
+    report = settle(sim, max_time=0.05, bottom_wall="zlo", cross_section=1e-4)
+    assert not report["reached"]
+    assert report["energy_J"]["rotational"] == pytest.approx(spin, rel=1e-9)
+    assert report["rotational_share"] > 0.999
+    assert report["energy_ratio"] > 1e-3
+    (holder,) = report["kinetic_holders"]
+    assert holder["grain"] == 1 and holder["grain_contacts"] == 1
+    assert holder["slip_m_s"] < 1e-9 * holder["surface_speed_m_s"]
+    line = Settle(SettleSettings(max_time=0.05), None).verdict({"report": report})
+    assert "grain 1 holds 100 % of it and slips at none of its grain contacts" in line
+    assert "contact.twisting" in line
+
+    sim = _spinner("oquendo", "oquendo")     # the laws of test_law_scenarios
+    report = settle(sim, max_time=0.05, bottom_wall="zlo", cross_section=1e-4)
+    assert report["reached"] and "kinetic_holders" not in report
+    assert Settle(SettleSettings(max_time=0.05), None).verdict({"report": report}) is None

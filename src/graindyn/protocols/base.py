@@ -145,6 +145,11 @@ class Phase:
         state as state["report"]."""
         return {}
 
+    def verdict(self, state):
+        """A line for the run log when the phase has ended, from its ``state``: what a
+        user should know of how it ended (None: nothing)."""
+        return None
+
 
 class ProtocolPhase(Phase):
     """A phase of a protocol's own: it reads the protocol (its log, folder and title),

@@ -142,6 +142,37 @@ class Settle(Phase):
         report["history"] = state["history"]
         return report
 
+    def verdict(self, state):
+        """When the criterion was not met: the E_kin/E_pot it ended at and, when a few
+        grains hold the energy (analysis.energy.kinetic_holders), which, and how many of
+        them slip nowhere (their sliding speeds below a thousandth of their surface
+        speeds): grains a law without rolling or twisting resistance never stops."""
+        report = state.get("report", {})
+        if report.get("reached", True):
+            return None
+        line = (f"{self.criterion} not met in {self.p.max_time:g} s: E_kin/E_pot = "
+                f"{report['energy_ratio']:.3g}, {100 * report['rotational_share']:.0f} % of "
+                f"E_kin rotational")
+        holders = report.get("kinetic_holders", [])
+        if not holders:
+            return line
+        kinetic = report["energy_J"]["kinetic"] + report["energy_J"]["rotational"]
+        held = sum(h["translational_J"] + h["rotational_J"] for h in holders) / kinetic
+        rolling = sum(h["slip_m_s"] <= 1e-3 * h["surface_speed_m_s"] for h in holders)
+        names = ", ".join(str(h["grain"]) for h in holders)
+        if len(holders) == 1:
+            line += f"; grain {names} holds {100 * held:.0f} % of it"
+            line += " and slips at none of its grain contacts" if rolling else ""
+        else:
+            line += f"; grains {names} hold {100 * held:.0f} % of it"
+            line += (f", {rolling} of them slipping at none of their grain contacts"
+                     if rolling else "")
+        if rolling:
+            line += (": with no rolling or twisting resistance in the contact law "
+                     "(contact.rolling, contact.twisting), a grain that rolls, or spins "
+                     "about the line of its contacts, keeps its energy")
+        return line
+
 
 class Hold(Phase):
     """Keep running for ``time`` [s] of simulated time with everything as it is (walls,

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._jit import kernel
-from ..analysis.energy import energy_budget
+from ..analysis.energy import energy_budget, kinetic_holders, settling_ratio
 from ..analysis.packing import coordination_number, packing_fraction, void_ratio
 from ..core.state import cell_order
 from ..core.triggers import EnergyRatioBelow, MaxSpeedBelow
@@ -272,14 +272,22 @@ def settle(sim, criterion=None, max_time=5.0, bottom_wall=None, cross_section=No
 
 
 def settle_report(sim, reached, criterion, bottom_wall=None, cross_section=None):
-    """The report of ``settle`` for a sample whose settling run has ended."""
+    """The report of ``settle`` for a sample whose settling run has ended; with it the
+    criterion's E_kin/E_pot (``energy_ratio``), the rotational share of E_kin and, when
+    the criterion was not met, the grains that hold most of E_kin
+    (analysis.energy.kinetic_holders)."""
     s = sim.state
     up = 2 if s.dim == 3 else 1
+    energy = energy_budget(sim)
+    kinetic = energy["kinetic"] + energy["rotational"]
     report = {"reached": bool(reached), "criterion": repr(criterion), "grains": s.n,
               "time_s": sim.time, "steps": sim.step,
               "coordination_number": coordination_number(sim),
               "coordination_number_mechanical": coordination_number(sim, exclude_rattlers=True),
-              "energy_J": energy_budget(sim)}
+              "energy_J": energy, "energy_ratio": settling_ratio(s, sim.gravity),
+              "rotational_share": energy["rotational"] / kinetic if kinetic > 0 else 0.0}
+    if not reached:
+        report["kinetic_holders"] = kinetic_holders(sim)
     weight = float(np.sum(s.masses[s.fixed == 0]) * np.linalg.norm(sim.gravity))
     report["total_weight_N"] = weight
     if bottom_wall is not None:
