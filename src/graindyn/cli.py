@@ -498,6 +498,10 @@ def study_settlement(
                    f"{100 * r['coordination_error']:.3g} %, E_r "
                    f"{r['configuration_error']:.3g}, gained time "
                    f"{r['gained_time_percent']:.3g} %")
+    if summary["forecast"]:
+        typer.echo("  full DEM forecast from its own past (rms relative error): " + ", ".join(
+            f"{key.replace('_', ' ')} {100 * f['rms']:.2g} %"
+            for key, f in summary["forecast"].items()))
     typer.echo(f"study written to {out}")
 
 

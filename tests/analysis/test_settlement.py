@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from graindyn.analysis.settlement import (chernoff_cycles, chernoff_probability, error_norm,
-                                          fit_residual, increment_norm, lstsq_shared,
-                                          relative_error, smooth_increments)
+                                          fit_residual, forecast_errors, increment_norm,
+                                          lstsq_shared, relative_error, smooth_increments)
 
 N = 50                     # grains
 PERIOD = 0.02              # [s], 50 Hz
@@ -223,3 +223,22 @@ def test_a_window_clock_keeps_a_steady_trend_steady():
     assert window.extrapolate(PERIOD * 90)[0, 0] == pytest.approx(true, rel=1e-9)
     loading = fit_residual(u, PERIOD * cycles, "shenton")
     assert loading.extrapolate(PERIOD * 200)[0, 0] < u[-1, 0, 0]
+
+
+def test_forecast_of_a_path_from_its_own_past_by_hand():
+    """A steady path is forecast exactly; a burst of settlement is missed by the
+    forecasts made before it and overshot by those whose window holds it."""
+    cycles = np.arange(101)
+    steady = 1e-3 * (1 + 0.01 * cycles)
+    assert np.allclose(forecast_errors(steady, 10, 20), 0.0, atol=1e-15)
+    burst = steady + 1e-4 * (cycles >= 50)
+    errors = forecast_errors(burst, 10, 20, first=5)
+    assert errors.size == 101 - 20 - 15
+    c = np.arange(15, 81)
+    assert errors[c == 35][0] == pytest.approx(-1e-4 / burst[55], rel=1e-12)   # misses it
+    assert errors[c == 55][0] == pytest.approx(2e-4 / burst[75], rel=1e-12)    # 20/10 of it
+    assert np.allclose(errors[(c >= 60)], 0.0, atol=1e-15)
+    with pytest.raises(ValueError, match="no window"):
+        forecast_errors(steady[:20], 10, 20)
+    with pytest.raises(ValueError, match=">= 1"):
+        forecast_errors(steady, 0, 20)

@@ -18,6 +18,7 @@ from typer.testing import CliRunner
 from graindyn.cli import app
 from graindyn.config.load import read_toml
 from graindyn.runner import RunInterrupted
+from graindyn.analysis.settlement import forecast_errors
 from graindyn.studies.settlement import (FULL, PARTIAL, QUICK, contact_coordination,
                                          ensemble, perturb, perturbation_of, plan,
                                          reference_of, run_from_bed,
@@ -100,6 +101,14 @@ def test_a_replica_is_full_dem_of_the_bed_with_one_grain_moved(study):
     for key in ("settlement_error", "coordination_error", "configuration_error",
                 "path_error"):
         assert tuple(noise[key]) == (r[key], r[key]), key
+    # full DEM forecast from its own past, from cycle k_i = 2 on, for k = 2, 3 and
+    # h = 2, 3 (the study's 8 cycles are too few for FORECAST_HORIZONS)
+    settlement = [s for _, s, _ in summary["paths"][FULL]]
+    assert set(summary["forecast"]) == {"k2_h2", "k2_h3", "k3_h2", "k3_h3"}
+    errors = forecast_errors(settlement, 3, 2, first=1)
+    assert summary["forecast"]["k3_h2"] == {"rms": pytest.approx(np.sqrt(np.mean(errors**2))),
+                                            "mean": pytest.approx(np.mean(errors)),
+                                            "forecasts": 8 - 2 - 4}
 
 
 def test_perturb_moves_the_free_grain_nearest_the_centre(tmp_path):
@@ -123,6 +132,8 @@ def test_a_second_call_reuses_the_bed_and_the_runs(study):
     result = CliRunner().invoke(app, ["study", "settlement", "--quick", "--out", str(out),
                                       "--k", "2,3", "--h", "3", "--replicas", "1"])
     assert result.exit_code == 0, result.output
+    assert "full DEM forecast from its own past (rms relative error): k2 h2 " in result.output
+    assert ", k3 h3 " in result.output
     assert "bed: reusing" in result.output
     assert result.output.count("reusing the finished run") == len(summary["runs"])
     again = json.loads((out / "summary.json").read_text())

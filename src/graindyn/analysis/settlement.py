@@ -214,6 +214,28 @@ def smooth_increments(positions, increments, length, planes=()):
     return out
 
 
+def forecast_errors(settlement, window, horizon, first=0):
+    """Relative errors [-] of the linear estimator (Eq. 16) applied to a settlement path
+    itself: from each record c >= first + window whose c + horizon is recorded, the
+    forecast s_c + horizon (s_c - s_(c-window)) / window against s_(c+horizon), over
+    s_(c+horizon).  ``settlement`` (n,) [m]: one record per cycle, record p at the end
+    of cycle p.
+
+    Applied to full DEM, it tells how far ahead the bed's own settlement can be told
+    from a window of its past: the bursts of settlement a window does not contain (a
+    few grains' arches giving way) make the spread of these errors a floor under the
+    error of any jump of ``horizon`` cycles that rests on ``window`` computed ones."""
+    s = np.asarray(settlement, dtype=float)
+    if window < 1 or horizon < 1:
+        raise ValueError(f"window and horizon must be >= 1 cycle, got {window}, {horizon}")
+    c = np.arange(first + window, s.size - horizon)
+    if c.size == 0:
+        raise ValueError(f"{s.size} records hold no window of {window} cycles from record "
+                         f"{first} with {horizon} more after it")
+    forecast = s[c] + horizon * (s[c] - s[c - window]) / window
+    return (forecast - s[c + horizon]) / s[c + horizon]
+
+
 def increment_norm(displacements):
     """g_u(k) (Eq. 13) [m]: (1/k) times the second norm of the k per-cycle increments
     u_p - u_p-1 over all grains and components."""

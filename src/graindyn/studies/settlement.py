@@ -65,10 +65,12 @@ import time
 
 import numpy as np
 
-from ..analysis.settlement import relative_error
+from ..analysis.settlement import forecast_errors, relative_error
 
 LAWS = ("linear", "shenton")
 FULL = "full_dem"
+# cycles ahead at which full DEM's settlement is forecast from its own past (forecast_floor)
+FORECAST_HORIZONS = (50, 100)
 REPLICA_TAG = "_replica_"
 REPLICA = FULL + REPLICA_TAG
 PARTIAL = "study_partial.json"      # the times of an interrupted study run's sessions
@@ -706,6 +708,7 @@ def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=Non
         "paths": {name: r["path"] for name, r in records.items()},
         "coordination_paths": {name: r["coordination_path"] for name, r in records.items()},
         "noise": noise([r for r in rows if r["run"] in families["replica"]]),
+        "forecast": forecast_floor(records[FULL]["path"], runs.values()),
         "ensembles": {name: ensemble(records, [(name, FULL)] + [
             (replica_name(name, r), replica_name(FULL, r))
             for r in range(1, procedure_replicas + 1)])
@@ -723,6 +726,11 @@ def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=Non
             "speedup": "t_full / t_p",
             "noise": "mean and largest of each error over the replicas, full DEM runs of "
                      "the bed with one grain moved by 1, 2, ... nm",
+            "forecast": "full DEM's settlement forecast from its own last k cycles by the "
+                        "linear estimator (Eq. 16), h cycles ahead, from cycle k_i on "
+                        "(analysis.settlement.forecast_errors): root mean square and mean "
+                        "of the relative errors, for each k and h of the runs and h = "
+                        f"{', '.join(map(str, FORECAST_HORIZONS))}",
             "reference": "the full DEM run a run is compared with: that of its own bed "
                          "for a procedure replica, of the unperturbed bed otherwise",
             "ensembles": "per procedure run, its replicas each against full DEM of the "
@@ -733,6 +741,31 @@ def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=Non
     if keep is not None:
         _copy(out, keep, STUDY_FILES)
     return summary
+
+
+def forecast_floor(path, settings):
+    """{"k<k>_h<h>": {"rms", "mean", "forecasts"}}: the relative errors of forecasting
+    full DEM's settlement ``path`` ([(cycle, settlement [m], source)], every cycle) h
+    cycles ahead from its last k cycles (analysis.settlement.forecast_errors), from the
+    runs' k_i on, for the k and h of the procedure runs among ``settings`` and h in
+    FORECAST_HORIZONS (the procedure's h grows); pairs the path is too short for are
+    left out.  How well the bed's own past tells its settlement: a floor under the
+    error of a procedure's jumps."""
+    procedure = [s for s in settings if s["extrapolation"] != "none"]
+    if not procedure:
+        return {}
+    first = min(s["initial_cycles"] for s in procedure) - 1    # record of cycle k_i
+    settlement = [s for _, s, _ in sorted(path)]
+    floor = {}
+    for k in sorted({s["computed_cycles"] for s in procedure}):
+        for h in sorted({s["extrapolated_cycles"] for s in procedure} | set(FORECAST_HORIZONS)):
+            if first + k + h >= len(settlement):
+                continue
+            errors = forecast_errors(settlement, k, h, first=first)
+            floor[f"k{k}_h{h}"] = {"rms": float(np.sqrt(np.mean(errors**2))),
+                                   "mean": float(np.mean(errors)),
+                                   "forecasts": int(errors.size)}
+    return floor
 
 
 def noise(rows):
