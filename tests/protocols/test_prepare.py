@@ -72,45 +72,67 @@ def test_settled_bed_carries_its_weight(rng):
     assert 3.0 < report["coordination_number"] < 7.0
 
 
-def _spinner(tangential, twisting):
-    """A grain resting on a held grain straight below it, spinning about the vertical
-    line through both, and a grain on the floor beside them; no sliding at the
-    spinner's contact (the spin axis is its normal), so only a twisting law can stop
-    it."""
-    r = 1e-3
-    pos = np.array([[5e-3, 5e-3, 2 * r], [5e-3, 5e-3, 4 * r], [2e-3, 2e-3, r]])
+def _spinner(tangential, twisting, against_image=False):
+    """A grain resting on a held grain, spinning about the line through both, and a
+    grain on the floor beside them; no sliding at the spinner's contact (the spin axis
+    is its normal), so only a twisting law can stop it.  Straight above the held grain;
+    or, ``against_image``, leaning on its own image through the symmetry plane x = 0
+    from a held grain half a radius further from the plane (frictionless equilibrium:
+    the image pushes it along x, the held grain along their line), where it never
+    slides either (the image mirrors its spin)."""
+    from graindyn.core.symmetry import Symmetry
+
+    r, young, poisson, density = 1e-3, 1e7, 0.3, 2650.0
+    weight = density * 4 / 3 * np.pi * r**3 * 9.81
+    # Hertz, F = 4/3 E* sqrt(R* d) d with R* = r/2 for the pair and for the image (whose
+    # overlap is twice the grain's penetration of the plane): the overlaps at rest
+    stiffness = 4 / 3 * young / (2 * (1 - poisson**2)) * np.sqrt(r / 2)
+    x0, x1, d0 = 1.5 * r, r, 0.0
+    for _ in range(50):
+        sine = (x0 - x1) / (2 * r - d0) if against_image else 0.0
+        f0 = weight / np.sqrt(1 - sine**2)
+        d0 = (f0 / stiffness) ** (2 / 3)
+        x1 = r - 0.5 * (f0 * sine / stiffness) ** (2 / 3) if against_image else x0
+    z1 = 2 * r + np.sqrt((2 * r - d0)**2 - (x0 - x1)**2)
+    pos = np.array([[x0, 5e-3, 2 * r], [x1, 5e-3, z1], [6e-3, 2e-3, r]])
     st = gd.State.create(pos, np.full(3, r), 2650.0)
     st.fixed[0] = 1
-    st.angular_velocities[1] = (0.0, 0.0, 100.0)
-    grain = gd.Material(density=2650.0, youngs_modulus=1e7, poisson_ratio=0.3,
+    axis = (pos[1] - pos[0]) / np.linalg.norm(pos[1] - pos[0])
+    st.angular_velocities[1] = 100.0 * axis
+    grain = gd.Material(density=density, youngs_modulus=young, poisson_ratio=poisson,
                         restitution=0.5, friction_sliding=0.5, tangential_damping=1.0,
                         gamma_nt=2e4)
     model = gd.ContactModel("hertz", "tsuji", tangential, twisting=twisting)
-    return gd.Simulation(st, [grain], model, walls=gd.box((0, 0, 0), (1e-2, 1e-2, 2e-2)))
+    # the box's side reaches past the plane: only the image touches the grains there
+    return gd.Simulation(st, [grain], model, walls=gd.box((-1e-2, 0, 0), (1e-2, 1e-2, 2e-2)),
+                         symmetry=[Symmetry("x", 0.0)] if against_image else ())
 
 
-def test_a_settling_held_up_by_a_spinning_grain_says_which_grain():
+@pytest.mark.parametrize("against_image", [False, True])
+def test_a_settling_held_up_by_a_spinning_grain_says_which_grain(against_image):
     """Without twisting resistance the spinner keeps its rotational energy for ever:
     the criterion is not met, and the report and the settle phase's log line name the
     grain, which slips nowhere.  With Oquendo's viscous twisting law (Eq. 2) the same
-    grain stops and the criterion is met."""
+    grain stops and the criterion is met.  Against its own image (symmetry plane) the
+    same holds: the image contact carries no tangential force."""
     from graindyn.protocols.phases import Settle, SettleSettings
 
-    sim = _spinner("mindlin", "none")
+    sim = _spinner("mindlin", "none", against_image)
     spin = 0.5 * sim.state.inertias[1] * 100.0**2
     report = settle(sim, max_time=0.05, bottom_wall="zlo", cross_section=1e-4)
     assert not report["reached"]
-    assert report["energy_J"]["rotational"] == pytest.approx(spin, rel=1e-9)
+    assert report["energy_J"]["rotational"] == pytest.approx(spin, rel=1e-6)
     assert report["rotational_share"] > 0.999
     assert report["energy_ratio"] > 1e-3
     (holder,) = report["kinetic_holders"]
     assert holder["grain"] == 1 and holder["grain_contacts"] == 1
+    assert holder["image_contacts"] == (1 if against_image else 0)
     assert holder["slip_m_s"] < 1e-9 * holder["surface_speed_m_s"]
     line = Settle(SettleSettings(max_time=0.05), None).verdict({"report": report})
     assert "grain 1 holds 100 % of it and slips at none of its grain contacts" in line
     assert "contact.twisting" in line
 
-    sim = _spinner("oquendo", "oquendo")     # the laws of test_law_scenarios
+    sim = _spinner("oquendo", "oquendo", against_image)     # test_law_scenarios's laws
     report = settle(sim, max_time=0.05, bottom_wall="zlo", cross_section=1e-4)
     assert report["reached"] and "kinetic_holders" not in report
     assert Settle(SettleSettings(max_time=0.05), None).verdict({"report": report}) is None

@@ -47,7 +47,8 @@ def kinetic_holders(engine, share=0.9, most=10):
     """The fewest grains that hold ``share`` of the free grains' kinetic energy, at most
     ``most`` (none when the energy is spread over more: the bed as a whole still moves),
     largest first: dicts of the grain's index, its translational and rotational
-    energies [J], its grain and wall contacts, ``surface_speed_m_s`` |v| + R |w| [m/s]
+    energies [J], its grain, wall and image contacts (symmetry planes: a grain never
+    slides on an image, which mirrors its motion), ``surface_speed_m_s`` |v| + R |w| [m/s]
     and ``slip_m_s``, the largest sliding speed [m/s] at its grain contacts (the
     tangential part of the contact points' relative velocity).  A grain that spins about the line through its contacts, or
     rolls on another, slips nowhere; under a contact law without rolling or twisting
@@ -64,6 +65,8 @@ def kinetic_holders(engine, share=0.9, most=10):
     if count > most:
         return []
     contacts, walls = engine.contacts(), engine.wall_contacts()
+    images = engine.image_contacts().grain if hasattr(engine, "image_contacts") \
+        else np.zeros(0, np.int64)
     slip = _slip_speeds(s, contacts)
     holders = []
     for i in order[:count]:
@@ -74,6 +77,7 @@ def kinetic_holders(engine, share=0.9, most=10):
             "rotational_J": float(0.5 * s.inertias[i] * np.sum(s.angular_velocities[i]**2)),
             "grain_contacts": int(np.count_nonzero(mine)),
             "wall_contacts": int(np.count_nonzero(walls.grain == i)),
+            "image_contacts": int(np.count_nonzero(images == i)),
             "surface_speed_m_s": float(np.linalg.norm(s.velocities[i]) + s.radii[i]
                                        * np.linalg.norm(s.angular_velocities[i])),
             "slip_m_s": float(slip[mine].max()) if mine.any() else 0.0})
