@@ -48,12 +48,12 @@ def kinetic_holders(engine, share=0.9, most=10):
     ``most`` (none when the energy is spread over more: the bed as a whole still moves),
     largest first: dicts of the grain's index, its translational and rotational
     energies [J], its grain, wall and image contacts (symmetry planes: a grain never
-    slides on an image, which mirrors its motion), ``surface_speed_m_s`` |v| + R |w| [m/s]
-    and ``slip_m_s``, the largest sliding speed [m/s] at its grain contacts (the
-    tangential part of the contact points' relative velocity).  A grain that spins about the line through its contacts, or
-    rolls on another, slips nowhere; under a contact law without rolling or twisting
-    resistance it then keeps its energy, and a settling criterion on E_kin/E_pot is
-    never met."""
+    slides on an image, which mirrors its motion), ``surface_speed_m_s`` |v| + R |w|
+    [m/s] and ``slip_m_s``, the largest sliding speed [m/s] at its grain contacts (the
+    tangential part of the contact points' relative velocity).  A grain that spins
+    about the line through its contacts, or rolls on another, slips nowhere; under a
+    contact law without rolling or twisting resistance it then keeps its energy, and a
+    settling criterion on E_kin/E_pot is never met."""
     s = engine.state
     energy = kinetic_energies(s)
     energy[s.fixed != 0] = 0.0
