@@ -283,6 +283,30 @@ def test_a_jump_beyond_its_tolerance_is_undone_and_the_bed_computed_on(procedure
     assert not (out / "procedure" / "before_jump.npz").exists()
 
 
+def test_an_undone_jump_is_retried_at_once_from_the_same_window(procedure):
+    """undone_jump = "retry" with jump_tolerance = 1e-12 (no jump can pass), k_i = 2,
+    k = 3, h = 3 over 12 cycles, final_cycles = 3: cycles 1-5 computed, the jump 5 -> 8
+    checked on cycles 9-11 and undone, and at once the jump 5 -> 6 (h = 3/5 rounded
+    to 1) from the same window of cycles 2-5, checked on 7-9 and undone; h = 1 cannot
+    shrink, so the window slides on: 6-8 computed, the jump 8 -> 9 checked on 10-12
+    and undone, 9-12 computed.  Every cycle computed once in the end, on the clock of
+    the cycles spent (none by a jump)."""
+    out, results = procedure(cycles=12, jump_tolerance=1e-12, final_cycles=3,
+                             undone_jump="retry")
+    assert [r["cycle"] for r in results["cycles"]] == list(range(1, 13))
+    assert results["extrapolations"] == []
+    rejected = [(j["from_cycle"], j["to_cycle"], j["checked_at_cycle"])
+                for j in results["rejected_extrapolations"]]
+    assert rejected == [(5, 8, 11), (5, 6, 9), (8, 9, 12)]
+    period = 1 / 50.0
+    t0 = results["cycles"][0]["time_s"] - period
+    times = [r["time_s"] - t0 for r in results["cycles"]]
+    spent = list(range(1, 6)) + list(range(12, 15)) + list(range(18, 22))
+    assert times == pytest.approx([period * c for c in spent], abs=1e-5)
+    log = (out / "run.log").read_text()
+    assert "retried at once with h = 1" in log and "the window slides on" in log
+
+
 def test_a_jump_within_its_tolerance_is_kept_with_its_estimate(procedure):
     """jump_tolerance = 1e9 (every jump passes), k_i = 2, k = 3, h = 3 growing twofold
     over 12 cycles, final_cycles = 3: the jump 5 -> 8 of the procedure without the

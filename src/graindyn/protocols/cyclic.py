@@ -165,6 +165,13 @@ class CyclicSettings(SettleSettings):
         "jump and at least h / 5 after an undone one.  Needs final_cycles >= restart_cycles "
         "+ computed_cycles, so that the last jump is checked too; 0: every jump kept "
         "(Karrech); >= 0", ge=0)
+    undone_jump: Literal["slide", "retry"] = _f(
+        "slide", "what follows a jump the check undid (jump_tolerance): slide (the window "
+        "slides on computed_cycles cycles before the shorter jump is tried) or retry (the "
+        "shorter jump is tried at once from the same window, as an adaptive ODE solver "
+        "retries a rejected step from where it was: only the cycles computed after the "
+        "undone jump are lost; when the shorter h is not shorter, as at h = 1, the window "
+        "slides)")
     keep_contacts: bool = _f(False, "the contacts still touching after an extrapolation and "
                              "its relaxation keep their history (tangential springs); "
                              "false: every contact starts unloaded (relocation)")
@@ -421,8 +428,10 @@ class Cycles(ProtocolPhase):
         jump's end.  Within the tolerance the jump is kept (True); beyond it the bed,
         the phase's records and files go back to what they were before the jump
         (engine.rewind: the clock runs on by whole cycles, so the load's phase is the
-        same), the rejected jump is listed in state["rejected"], and the window slides
-        on: computed_cycles more cycles before a shorter jump is tried (False).  The
+        same), the rejected jump is listed in state["rejected"], and either the window
+        slides on, computed_cycles more cycles before a shorter jump is tried, or
+        (undone_jump = "retry") the shorter jump is made at once from the same window
+        (False).  The
         next h is chosen as an adaptive solver chooses its step, the jump's error
         taken to grow as h^2 (the forward jump's): h times 0.9 sqrt(tol / error),
         at most extrapolated_growth times h after a kept jump, at least a fifth of h
@@ -455,15 +464,19 @@ class Cycles(ProtocolPhase):
                         f.unlink()
         engine.rewind(arrays)
         rejected = state.get("rejected", []) + [jump]
+        retry = p.undone_jump == "retry" and jump["next_h"] < h
         state.clear()
         state.update(before, rejected=rejected, next_h=jump["next_h"])
-        state["round"] = state["round"][-1:]
-        state["window_opens"] = state["cycle"] + 1
+        if not retry:
+            state["round"] = state["round"][-1:]
+            state["window_opens"] = state["cycle"] + 1
         self._forget_before_jump()
         self.protocol.log(f"jump {jump['from_cycle']} -> {jump['to_cycle']} undone: "
                           f"estimated error {error:.3g} > {p.jump_tolerance:g} (rate "
                           f"{1e3 * jump['extrapolated_rate_m_per_cycle']:.3g} mm a cycle "
-                          f"extrapolated, {1e3 * r_after:.3g} measured after it)")
+                          f"extrapolated, {1e3 * r_after:.3g} measured after it); "
+                          + (f"retried at once with h = {jump['next_h']}" if retry else
+                             f"the window slides on, then h = {jump['next_h']}"))
         return False
 
     def _before_jump_file(self):

@@ -179,7 +179,8 @@ RUN_KEYS = ("cycles", "extrapolation", "initial_cycles", "computed_cycles",
 # procedure and leave the bed, which does not read them, as it is (and reusable).
 PROCEDURE_KEYS = ("relaxation", "relaxation_iterations", "relaxation_tolerance",
                   "smoothing", "keep_contacts", "hold_frontier", "extrapolated_growth",
-                  "restart_cycles", "fit_time", "final_cycles", "jump_tolerance")
+                  "restart_cycles", "fit_time", "final_cycles", "jump_tolerance",
+                  "undone_jump")
 
 
 # ------------------------------------------------------------------ configs
