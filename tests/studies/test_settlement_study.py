@@ -140,6 +140,18 @@ def test_a_second_call_reuses_the_bed_and_the_runs(study):
     assert again["runs"][FULL]["cpu_s"] == summary["runs"][FULL]["cpu_s"]
 
 
+def test_a_finished_run_is_not_deleted_for_other_settings(study):
+    """The same study with another procedure setting (smoothing) is refused before
+    anything runs, naming the setting, and the finished runs stay as they were."""
+    out, summary, _ = study
+    before = {f: f.stat().st_mtime_ns for f in out.rglob("*")}
+    with pytest.raises(ValueError, match=r"finished run made with other settings "
+                                         r"\(smoothing None -> 1.0\)"):
+        run_settlement_study(out, quick=True, ks=(2, 3), hs=(3,), replicas=1,
+                             overrides={"protocol.smoothing": 1.0}, echo=lambda *a: None)
+    assert {f: f.stat().st_mtime_ns for f in out.rglob("*")} == before
+
+
 def test_status_of_a_finished_study_writes_nothing(study):
     out, summary, _ = study
     before = {f: f.stat().st_mtime_ns for f in out.rglob("*")}

@@ -387,6 +387,33 @@ def keep_run(folder, keep):
 
 
 # ------------------------------------------------------------------ one run
+def refuse_other_settings(folder, settings, perturbation=0.0):
+    """ValueError when the run directory ``folder`` holds a run, finished or stopped to
+    be resumed, made with other protocol ``settings`` or another ``perturbation`` [m]
+    than the study now asks for: run_from_bed would delete it to start again, and a
+    finished run of a thousand cycles is hours of CPU.  The message names the settings
+    that differ; another --out (the bed and the runs to keep copied in) keeps both."""
+    folder = pathlib.Path(folder)
+    for record_file in (folder / "study_run.json", folder / PARTIAL):
+        if record_file.exists():
+            record = json.loads(record_file.read_text())
+            break
+    else:
+        return
+    if record_file.name == PARTIAL and not record.get("closed"):
+        return                              # its time unknown: it starts again anyway
+    before = {**record["settings"], "perturbation_m": record.get("perturbation_m", 0.0)}
+    now = {**settings, "perturbation_m": perturbation}
+    differ = sorted(k for k in before.keys() | now.keys() if before.get(k) != now.get(k))
+    if differ:
+        state = "finished" if record_file.name == "study_run.json" else "stopped"
+        changes = ", ".join(f"{k} {before.get(k)!r} -> {now.get(k)!r}" for k in differ)
+        raise ValueError(
+            f"{folder} holds a {state} run made with other settings ({changes}); it would "
+            "be deleted to start again: give the study another --out (copy the bed "
+            "and the runs to keep into it) or remove that run folder")
+
+
 def run_from_bed(bed, settings, folder, echo=print, threads=None, perturbation=0.0):
     """The cycles of one study run in the run directory ``folder``: the bed's resolved
     config with the protocol ``settings`` (and no figures), its meta data, time series
@@ -654,6 +681,8 @@ def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=Non
         restore_bed(keep, bed, data)
         for name in runs:
             restore_run(keep, out / "runs" / name)
+    for name, settings in runs.items():
+        refuse_other_settings(out / "runs" / name, settings, perturbation_of(name))
     prepare_bed(data, bed, echo=echo)
     if keep is not None:
         _copy(bed, keep / "bed", BED_FILES)
