@@ -505,6 +505,39 @@ def study_settlement(
     typer.echo(f"study written to {out}")
 
 
+@study.command("settlement-beds")
+def study_settlement_beds(
+    folders: Annotated[list[pathlib.Path], typer.Argument(
+        help="Folders of finished settlement studies of other beds (--set run.seed=N), "
+        "run with the same procedure settings.")],
+    out: Annotated[pathlib.Path, typer.Option(
+        "--out", "-o", help="Folder for pooled.json, pooled.csv and "
+        "settlement_ensemble.png.")] = pathlib.Path("runs/settlement_beds"),
+    run: Annotated[Optional[str], typer.Option(
+        help="The procedure run to pool [default: the one every study has].")] = None,
+    at: Annotated[Optional[str], typer.Option(
+        help="Cycles at which to report the bias, comma-separated [default: five "
+        "evenly spaced].")] = None,
+):
+    """The procedure over several beds: every (procedure, full DEM of the same bed) pair
+    of every study, the procedure's replicas included, pooled into one ensemble, its
+    bias mean(s_p - s_full) / mean(s_full) with its standard error along the cycles
+    (docs/settlement.md).  Reads the studies' summary.json; runs nothing."""
+    from .studies.settlement_beds import pool_beds
+
+    try:
+        pooled = pool_beds(folders, out, run=run, at=at and _numbers(at, "--at"))
+    except ValueError as err:
+        _fail(err)
+    e = pooled["ensemble"]
+    typer.echo(f"{pooled['run']}: {len(e['pairs'])} pairs from {len(folders)} studies, "
+               f"speed-up {e['speedup']:.2f} (summed CPU), full DEM's spread "
+               f"{100 * e['full_spread']:.2g} %")
+    for cycle, (bias, se) in e["bias_at"].items():
+        typer.echo(f"  cycle {cycle}: bias {100 * bias:+.2f} +- {100 * se:.2f} %")
+    typer.echo(f"pooled into {out}")
+
+
 def main():
     """Console entry point."""
     app()

@@ -965,7 +965,7 @@ def figures(out, summary):
     fig.savefig(second, dpi=110)
     made = [first, second]
     if summary.get("ensembles"):
-        made.append(_ensemble_figure(out, summary, label, title))
+        made.append(ensemble_figure(out, summary, label, title))
     from ..protocols.cyclic import RELAXATIONS, relaxation_figure
 
     relaxed = [name for name in (*families["k"], *families["h"])
@@ -978,7 +978,7 @@ def figures(out, summary):
     return made
 
 
-def _ensemble_figure(out, summary, label, title):
+def ensemble_figure(out, summary, label, title):
     """settlement_ensemble.png: the mean settlement path of full DEM and of each
     procedure run over the replicated beds, each with a band of one spread (left), and
     the bias of each procedure run, its mean difference from full DEM of the same beds
@@ -1016,7 +1016,7 @@ def _ensemble_figure(out, summary, label, title):
                 ylabel="bias: mean(s_p - s_full) / mean(s_full) [%] (band: one s.e.)")
     for ax in axes:
         ax.legend(fontsize=7)
-    fig.suptitle(f"The procedure over replicated beds, {title}")
+    fig.suptitle(f"The procedure over several beds, {title}")
     fig.tight_layout()
     path = pathlib.Path(out) / "settlement_ensemble.png"
     fig.savefig(path, dpi=110)

@@ -1,0 +1,140 @@
+"""The settlement procedure over several beds: studies pooled into one ensemble.
+
+One study (studies/settlement.py) settles one bed; its procedure replicas are that bed
+with one grain moved by nanometres, which the load cycles amplify into independent
+arrangements.  Beds settled from other seeds (``--set run.seed=2``) are independent
+from the start and cost no more, but each is a study of its own.  ``pool_beds`` takes
+the summaries of several such studies, run with the same procedure settings, and
+treats every pair (procedure run, full DEM of the same bed) of every study as one
+sample of the procedure's error: the bias mean(s_p - s_f) / mean(s_f) at every cycle,
+with its standard error (settlement.ensemble), over all the beds.  Full DEM's chaos
+(a nanometre moves its settlement by a few per cent over hundreds of cycles,
+docs/settlement.md) makes one pair's error mostly noise; the bias of n pairs resolves
+the procedure's own error to about spread / sqrt(n).
+
+Each study folder is read from its ``summary.json`` only (paths, CPU times, settings):
+nothing is run.  Two folders of the same seed are refused, since their runs are the
+same computations to the bit and would be counted twice; so are folders whose
+procedure settings, grain count, loading mode or estimator differ.
+
+>>> pool_beds(["runs/study_bed1", "runs/study_bed2"], "runs/pooled")  # doctest: +SKIP
+"""
+import csv
+import json
+import pathlib
+
+import numpy as np
+
+from .settlement import FULL, REPLICA_TAG, ensemble_figure, ensemble, perturbation_of
+
+SEED = "run.seed"        # the override that makes another bed of the same settings
+POOLED = "pooled.json"
+
+
+def _summary(folder):
+    path = pathlib.Path(folder) / "summary.json"
+    if not path.is_file():
+        raise ValueError(f"{folder}: no summary.json (not a finished settlement study)")
+    return json.loads(path.read_text())
+
+
+def _settings(summary):
+    """What must agree between pooled studies: every override but the seed, the grain
+    count, the loading mode and the estimator."""
+    overrides = {k: v for k, v in summary["overrides"].items() if k != SEED}
+    return {"overrides": overrides, "grains": summary["grains"], "mode": summary["mode"],
+            "estimator": summary["estimator"]}
+
+
+def procedure_runs(summary):
+    """The procedure runs of a study summary by base name: {run: [run and its
+    replicas]} (full DEM and its replicas left out)."""
+    runs = {}
+    for name in summary["runs"]:
+        base = name.rpartition(REPLICA_TAG)[0] if perturbation_of(name) else name
+        if base != FULL:
+            runs.setdefault(base, []).append(name)
+    return runs
+
+
+def pool_beds(folders, out, run=None, at=None):
+    """Pool the settlement studies in ``folders`` (module docstring) for the procedure
+    run ``run`` (default: the one procedure run every study has, if there is one) into
+    ``out``: pooled.json (the folders, their seeds, the settings and the ensemble of
+    every pair, settlement.ensemble, with its bias at the cycles ``at``, default five
+    evenly spaced up to the last common cycle), pooled.csv (one row per pair: study,
+    run, reference, settlement of both at the last common cycle and the difference,
+    CPU times) and settlement_ensemble.png.  Returns the pooled dict."""
+    folders = [pathlib.Path(f) for f in folders]
+    if len(folders) < 2:
+        raise ValueError("pooling needs at least two study folders")
+    summaries = [_summary(f) for f in folders]
+    first = _settings(summaries[0])
+    seeds = {}
+    for folder, summary in zip(folders, summaries):
+        settings = _settings(summary)
+        if settings != first:
+            differ = sorted(k for k in first if first[k] != settings[k])
+            if "overrides" in differ:
+                keys = set(first["overrides"]) | set(settings["overrides"])
+                differ += sorted(k for k in keys if first["overrides"].get(k)
+                                 != settings["overrides"].get(k))
+            raise ValueError(f"{folder} was run with other settings than {folders[0]} "
+                             f"({', '.join(differ)}): its beds are no samples of the "
+                             "same procedure")
+        seed = summary["overrides"].get(SEED, "the config's")
+        if seed in seeds:
+            raise ValueError(f"{folder} and {seeds[seed]} hold the same bed (seed {seed}): "
+                             "their runs would be counted twice")
+        seeds[seed] = folder
+    common = set.intersection(*(set(procedure_runs(s)) for s in summaries))
+    if run is None:
+        if len(common) != 1:
+            raise ValueError("name the procedure run to pool: the studies have "
+                             f"{', '.join(sorted(common)) or 'none'} in common")
+        run = common.pop()
+    elif run not in common:
+        raise ValueError(f"{run!r} is not a procedure run of every study (common: "
+                         f"{', '.join(sorted(common)) or 'none'})")
+
+    records, pairs, paths = {}, [], {}
+    for folder, summary in zip(folders, summaries):
+        for name in procedure_runs(summary)[run]:
+            reference = summary["runs"][name]["reference"]
+            keys = []
+            for n in (name, reference):
+                key = f"{folder.name}/{n}"
+                row = summary["runs"][n]
+                records[key] = {"path": summary["paths"][n], "cycle": row["cycles"],
+                                "cpu_s": row["cpu_s"]}
+                paths[key] = summary["paths"][n]
+                keys.append(key)
+            pairs.append(tuple(keys))
+    pooled = ensemble(records, pairs)
+    last = pooled["cycle"]
+    at = sorted({int(c) for c in (at or np.linspace(last / 5, last, 5).round())
+                 if 1 <= c <= last})
+    pooled["bias_at"] = {str(c): [pooled["path_bias"][c - 1], pooled["path_bias_se"][c - 1]]
+                         for c in at}
+    result = {"folders": [str(f) for f in folders],
+              "seeds": {str(s): str(f) for s, f in seeds.items()},
+              "run": run, "settings": first, "ensemble": pooled}
+    out = pathlib.Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / POOLED).write_text(json.dumps(result, indent=1, default=float))
+    with open(out / "pooled.csv", "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["study", "run", "reference", "cycle", "settlement_run_m",
+                         "settlement_reference_m", "difference_m", "cpu_run_s",
+                         "cpu_reference_s"])
+        for p, r in pairs:
+            study, name = p.split("/")
+            s_p = float(np.interp(last, *zip(*[(c, s) for c, s, _ in paths[p]])))
+            s_f = float(np.interp(last, *zip(*[(c, s) for c, s, _ in paths[r]])))
+            writer.writerow([study, name, r.split("/")[1], last, s_p, s_f, s_p - s_f,
+                             records[p]["cpu_s"], records[r]["cpu_s"]])
+    title = (f"{summaries[0]['grains']} grains, {summaries[0]['mode']} confined, "
+             f"{summaries[0]['estimator']}, {len(pairs)} beds from {len(folders)} studies")
+    ensemble_figure(out, {"paths": paths, "ensembles": {run: pooled}},
+                     lambda name: name, title)
+    return result

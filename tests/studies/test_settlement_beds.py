@@ -1,0 +1,104 @@
+"""Settlement studies of several beds pooled into one ensemble (studies/settlement_beds.py)."""
+import csv
+import json
+import math
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from graindyn.cli import app
+from graindyn.studies.settlement_beds import pool_beds, procedure_runs
+
+RUN = "linear_ki30_k10_h20"
+SETTINGS = {"protocol.jump_tolerance": 0.005, "protocol.undone_jump": "retry"}
+
+
+def _study(folder, seed, runs, overrides=None):
+    """A finished study's summary.json: ``runs`` {name: (rate [m/cycle], offset at the
+    last cycle [m], reference, CPU s)}; each path settles at ``rate`` a cycle over
+    cycles 1-10, a procedure reporting cycles 1, 5 and 10 (jumps in between) with its
+    offset reached linearly from cycle 1."""
+    summary = {"overrides": {**({"run.seed": seed} if seed is not None else {}),
+                             **SETTINGS, **(overrides or {})},
+               "grains": 430, "mode": "fully", "estimator": "linear", "runs": {},
+               "paths": {}}
+    for name, (rate, offset, reference, cpu) in runs.items():
+        cycles = range(1, 11) if offset is None else (1, 5, 10)
+        summary["paths"][name] = [[c, rate * c + (offset or 0.0) * (c - 1) / 9,
+                                   "computed"] for c in cycles]
+        summary["runs"][name] = {"reference": reference, "cycles": 10, "cpu_s": cpu}
+    folder.mkdir()
+    (folder / "summary.json").write_text(json.dumps(summary))
+    return folder
+
+
+@pytest.fixture
+def studies(tmp_path):
+    """Bed 1 with a replica of full DEM and of the procedure, bed 2 without."""
+    one = _study(tmp_path / "bed1", None, {
+        "full_dem": (1e-4, None, "full_dem", 100.0),
+        "full_dem_replica_1": (1.1e-4, None, "full_dem", 110.0),
+        RUN: (1e-4, -2e-5, "full_dem", 30.0),
+        RUN + "_replica_1": (1.1e-4, 1e-5, "full_dem_replica_1", 35.0)})
+    two = _study(tmp_path / "bed2", 2, {
+        "full_dem": (2e-4, None, "full_dem", 120.0),
+        RUN: (2e-4, -4e-5, "full_dem", 40.0)})
+    return one, two
+
+
+def test_every_pair_of_every_study_is_one_sample(studies, tmp_path):
+    """Three pairs (bed 1, its replica, bed 2), differences -2e-5, 1e-5 and -4e-5 m at
+    cycle 10 over full DEM settling 1e-3, 1.1e-3 and 2e-3 m."""
+    pooled = pool_beds(studies, tmp_path / "pooled", at=(5, 10))
+    e = pooled["ensemble"]
+    d = np.array([-2e-5, 1e-5, -4e-5])
+    full = np.array([1e-3, 1.1e-3, 2e-3])
+    assert pooled["run"] == RUN
+    assert [p for p, _ in e["pairs"]] == [f"bed1/{RUN}", f"bed1/{RUN}_replica_1",
+                                          f"bed2/{RUN}"]
+    assert e["pairs"][1][1] == "bed1/full_dem_replica_1"
+    assert e["settlement_bias"] == pytest.approx(d.mean() / full.mean())
+    assert e["settlement_bias_se"] == pytest.approx(d.std(ddof=1) / math.sqrt(3)
+                                                    / full.mean())
+    assert e["speedup"] == pytest.approx(330.0 / 105.0)
+    # at cycle 5 each procedure is 4/9 of its way to its offset
+    bias_5, _ = e["bias_at"]["5"]
+    assert bias_5 == pytest.approx(4 / 9 * d.mean() / (5 * full.mean() / 10))
+    with open(tmp_path / "pooled" / "pooled.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert [float(r["difference_m"]) for r in rows] == pytest.approx(list(d))
+    assert (tmp_path / "pooled" / "settlement_ensemble.png").stat().st_size > 0
+
+
+def test_procedure_runs_group_replicas_under_their_run(studies):
+    summary = json.loads((studies[0] / "summary.json").read_text())
+    assert procedure_runs(summary) == {RUN: [RUN, RUN + "_replica_1"]}
+
+
+def test_studies_that_cannot_be_pooled_are_refused(studies, tmp_path):
+    one, two = studies
+    same = _study(tmp_path / "bed1_again", None, {"full_dem": (1e-4, None, "full_dem", 1.0),
+                                                 RUN: (1e-4, 0.0, "full_dem", 1.0)})
+    with pytest.raises(ValueError, match="same bed"):
+        pool_beds([one, same], tmp_path / "out")
+    other = _study(tmp_path / "slide", 3, {"full_dem": (1e-4, None, "full_dem", 1.0),
+                                           RUN: (1e-4, 0.0, "full_dem", 1.0)},
+                   {"protocol.undone_jump": "slide"})
+    with pytest.raises(ValueError, match="protocol.undone_jump"):
+        pool_beds([one, other], tmp_path / "out")
+    with pytest.raises(ValueError, match="not a procedure run of every study"):
+        pool_beds([one, two], tmp_path / "out", run="shenton_ki10_k40_h10")
+    with pytest.raises(ValueError, match="no summary.json"):
+        pool_beds([one, tmp_path / "nothing"], tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_command_prints_the_bias_along_the_cycles(studies, tmp_path):
+    result = CliRunner().invoke(app, ["study", "settlement-beds", *map(str, studies),
+                                      "--out", str(tmp_path / "p"), "--at", "10"])
+    assert result.exit_code == 0, result.output
+    assert "3 pairs from 2 studies" in result.output
+    assert "cycle 10: bias -1.22 +- " in result.output
+    result = CliRunner().invoke(app, ["study", "settlement-beds", str(studies[0])])
+    assert result.exit_code != 0 and "at least two" in result.output
