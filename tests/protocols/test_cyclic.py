@@ -331,7 +331,35 @@ def test_a_jump_within_its_tolerance_is_kept_with_its_estimate(procedure):
         assert j["next_h"] == 2 * h         # within the tolerance: grown by at most 2
 
 
+def test_a_corrected_jump_is_kept_and_moved_on_by_half_its_rate_error(procedure):
+    """jump_correction = "trapezoidal" with jump_tolerance = 1e-12 (every jump beyond
+    it), the linear estimator, k_i = 2, k = 3, h = 3 over 12 cycles, final_cycles = 3:
+    the jump 5 -> 8 is kept, not undone; once cycles 9-11 are computed the plate is
+    moved on by h (r_after - r_jump) / 2 (Heun's correction of the forward jump) and
+    the grains relaxed, cycle 11's settlement is the corrected one, and the next h is
+    cut by the controller's largest factor (the error is far beyond the tolerance)."""
+    out, results = procedure(cycles=12, jump_tolerance=1e-12, final_cycles=3,
+                             extrapolation="linear", jump_correction="trapezoidal")
+    assert [r["cycle"] for r in results["cycles"]] == [1, 2, 3, 4, 5, 9, 10, 11, 12]
+    assert results["rejected_extrapolations"] == []
+    (jump,) = results["extrapolations"]
+    assert (jump["from_cycle"], jump["to_cycle"], jump["checked_at_cycle"]) == (5, 8, 11)
+    assert jump["correction_m"] == pytest.approx(
+        1.5 * (jump["measured_rate_m_per_cycle"] - jump["extrapolated_rate_m_per_cycle"]),
+        rel=1e-9)
+    assert jump["correction_m"] != 0.0
+    assert jump["correction_relaxation_iterations"] > 0
+    assert jump["correction_largest_overlap_after"] < 1e-3
+    assert jump["next_h"] == 1                              # 3 x 0.2, rounded
+    rows = {r["cycle"]: r for r in results["cycles"]}
+    assert rows[11]["settlement_m"] == pytest.approx(rows[11]["plate_height_m"] * -1.0
+                                                     + rows[1]["plate_height_m"]
+                                                     + rows[1]["settlement_m"], abs=1e-12)
+    assert not (out / "procedure" / "before_jump.npz").exists()
+
+
 @pytest.mark.parametrize("change, message", [
+    (dict(jump_correction="trapezoidal"), "needs an extrapolation and"),
     (dict(jump_tolerance=-0.1), "jump_tolerance"),
     (dict(jump_tolerance=0.01, cycles=20, final_cycles=2), "final_cycles = 2 must be at "
                                                             "least"),
@@ -344,16 +372,20 @@ def test_bad_jump_tolerances_are_refused(change, message):
         validate(data)
 
 
+@pytest.mark.parametrize("correction", [{}, {"extrapolation": "linear",
+                                              "jump_correction": "trapezoidal"}])
 def test_a_run_stopped_before_its_jump_is_checked_resumes_to_the_same_numbers(
-        procedure, tmp_path):
+        procedure, tmp_path, correction):
     """SIGTERM just after the first jump, before the cycles that check it are done, then
-    --resume: the bed kept before the jump comes back from the run folder, and the run
-    ends with the same cycles, rejected jumps and residuals as the one not stopped."""
-    finished, results = procedure(cycles=12, jump_tolerance=1e-12, final_cycles=3)
+    --resume: the bed kept before the jump (or, for a jump to be corrected, the rates
+    it extrapolated) comes back from the run folder, and the run ends with the same
+    cycles, kept and rejected jumps and residuals as the one not stopped."""
+    finished, results = procedure(cycles=12, jump_tolerance=1e-12, final_cycles=3,
+                                  **correction)
     data = copy.deepcopy(SMALL)
     data["protocol"].update({"cycles": 12, "extrapolation": "shenton", "initial_cycles": 2,
                              "computed_cycles": 3, "extrapolated_cycles": 3,
-                             "jump_tolerance": 1e-12, "final_cycles": 3})
+                             "jump_tolerance": 1e-12, "final_cycles": 3, **correction})
     data["output"]["figures"] = False
     (tmp_path / "run.toml").write_text(tomli_w.dumps(data))
     run = tmp_path / "run"
@@ -361,7 +393,7 @@ def test_a_run_stopped_before_its_jump_is_checked_resumes_to_the_same_numbers(
                      "extrapolated")
     _, meta, _, _ = checkpoint.read(run / "checkpoints" / "checkpoint.h5")
     assert "unchecked" in meta["protocol"]["states"]["cycles"]
-    assert (run / "procedure" / "before_jump.npz").exists()
+    assert (run / "procedure" / "before_jump.npz").exists() != bool(correction)
     proc = cli("run", "--resume", run)
     out, _ = proc.communicate(timeout=900)
     assert proc.returncode == 0, out

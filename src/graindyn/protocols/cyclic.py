@@ -172,6 +172,17 @@ class CyclicSettings(SettleSettings):
         "retries a rejected step from where it was: only the cycles computed after the "
         "undone jump are lost; when the shorter h is not shorter, as at h = 1, the window "
         "slides)")
+    jump_correction: Literal["none", "trapezoidal"] = _f(
+        "none", "what becomes of a checked jump (jump_tolerance) once the window after it "
+        "is computed: none (kept within the tolerance, undone beyond it: undone_jump) or "
+        "trapezoidal (always kept, and corrected to what the trapezoidal rule would have "
+        "made of it, as Heun's method corrects Euler's step: every grain and the plate "
+        "moved on by h (v_after - v_jump) / 2, v_jump the rate field the jump extrapolated "
+        "at its end and v_after the one the window measures, then relaxed as a jump is; "
+        "the next h chosen by the same controller, at least h / 5).  Undoing a jump throws "
+        "away what the window after it measured, and the retried or later jumps then lean "
+        "on the windows whose rates stayed steady: the bursts of settlement count less "
+        "than they weigh (docs/settlement.md); a corrected jump keeps every measured window")
     keep_contacts: bool = _f(False, "the contacts still touching after an extrapolation and "
                              "its relaxation keep their history (tangential springs); "
                              "false: every contact starts unloaded (relocation)")
@@ -219,6 +230,13 @@ class Cyclic(Protocol):
                 f"final_cycles = {settings.final_cycles} must be at least restart_cycles + "
                 f"computed_cycles = {settings.restart_cycles + settings.computed_cycles}, "
                 f"so that the last jump is checked too")
+
+        if settings.jump_correction != "none" and not (
+                settings.extrapolation != "none" and settings.jump_tolerance > 0):
+            raise ValueError(
+                f"protocol.jump_correction = {settings.jump_correction!r} corrects each "
+                "jump on the window checked after it: it needs an extrapolation and "
+                "protocol.jump_tolerance > 0")
 
     @classmethod
     def materials_named(cls, settings):
@@ -369,31 +387,25 @@ class Cycles(ProtocolPhase):
         law = p.extrapolation
         grains = np.array([r["positions"] for r in records])
         plates = np.array([r["plate"] for r in records])[:, None, :]
-        moved = {}
+        moved, cycle_before = {}, {}
         for name, values in (("grains", grains), ("plate", plates)):
             trend = fit_residual(values - values[0], times, law)
             moved[name] = values[0] + trend.extrapolate(end)
-            if name == "plate":     # where the trend has the plate a cycle before the end
-                last_cycle = values[0] + trend.extrapolate(end - period)
+            # where the trend has them a cycle before the end
+            cycle_before[name] = values[0] + trend.extrapolate(end - period)
+        last = grains[-1]
+        if p.jump_correction != "none":     # the rates [m/cycle] at the jump's end
+            state["jump_rates"] = {
+                "grains": self._smooth(engine, last, moved["grains"]
+                                       - cycle_before["grains"]).tolist(),
+                "plate": (moved["plate"] - cycle_before["plate"])[0].tolist()}
         if p.smoothing > 0:
-            s = engine.state
-            last = grains[-1]
-            moved["grains"] = last + smooth_increments(
-                last, moved["grains"] - last, p.smoothing * float(np.mean(s.radii)),
-                planes=[(plane.index, plane.at) for plane in self.vessel.symmetry])
-        if p.jump_tolerance > 0:
+            moved["grains"] = last + self._smooth(engine, last, moved["grains"] - last)
+        if p.jump_tolerance > 0 and p.jump_correction == "none":
             self._keep_before_jump(engine, state)
         up = self.vessel.dim - 1
-        rate = float(last_cycle[0, up] - moved["plate"][0, up])     # its descent [m/cycle]
-        held = engine.state.fixed != 0
-        engine.place_wall(k, moved["plate"][0])
-        result = engine.relax(fixed=held | self._frontier(engine, k) if p.hold_frontier
-                              else held, force_tolerance=p.relaxation_tolerance,
-                              gravity=p.relaxation == "gravity",
-                              anchor=0.0 if p.relaxation == "gravity" else 1.0,
-                              max_iterations=p.relaxation_iterations,
-                              start=moved["grains"], keep_contacts=p.keep_contacts,
-                              allowed=grains[-1] if p.relaxation == "excess" else None)
+        rate = float(cycle_before["plate"][0, up] - moved["plate"][0, up])  # descent [m/cycle]
+        result = self._move_and_relax(engine, k, moved["grains"], moved["plate"][0], last)
         state["cycle"] += ahead
         jump = {"from_cycle": state["cycle"] - ahead, "to_cycle": state["cycle"],
                 "estimator": law, "settlement_m": state["plate_0"] - self._plate(engine, k),
@@ -420,6 +432,66 @@ class Cycles(ProtocolPhase):
             f"{result.iterations} iterations, largest overlap / radius "
             f"{jump['largest_overlap_before']:.3g} -> {jump['largest_overlap_after']:.3g}")
 
+    def _smooth(self, engine, positions, increments):
+        """The increments (N, 3) [m] of grains at ``positions`` averaged over
+        ``smoothing`` mean radii (analysis.settlement.smooth_increments; unchanged
+        without smoothing)."""
+        if self.p.smoothing <= 0:
+            return np.asarray(increments, dtype=np.float64)
+        return smooth_increments(
+            positions, increments, self.p.smoothing * float(np.mean(engine.state.radii)),
+            planes=[(plane.index, plane.at) for plane in self.vessel.symmetry])
+
+    def _move_and_relax(self, engine, k, grains, plate, allowed):
+        """The plate put at offset ``plate`` and the grains relaxed from ``grains`` (N,
+        3) [m] (Eq. 29, engine.relax, as the ``relaxation`` setting says; ``allowed``:
+        the positions whose overlaps relaxation = "excess" keeps).  Returns the
+        relaxation's result."""
+        p = self.p
+        held = engine.state.fixed != 0
+        engine.place_wall(k, plate)
+        return engine.relax(fixed=held | self._frontier(engine, k) if p.hold_frontier
+                            else held, force_tolerance=p.relaxation_tolerance,
+                            gravity=p.relaxation == "gravity",
+                            anchor=0.0 if p.relaxation == "gravity" else 1.0,
+                            max_iterations=p.relaxation_iterations, start=grains,
+                            keep_contacts=p.keep_contacts,
+                            allowed=allowed if p.relaxation == "excess" else None)
+
+    def _correct_jump(self, engine, state, k, jump, h):
+        """The trapezoidal correction of the last jump (jump_correction): every grain and
+        the plate moved on by h (v_after - v_jump) / 2, v_after the least-squares rate
+        field [m/cycle] of the window computed after the jump (smoothed as the jump's
+        increments were) and v_jump the one the jump extrapolated at its end, the grains
+        relaxed from there; the window's records and the cycle's row and residuals
+        shifted by what the grains and the plate moved, so that the next jump, which
+        fits the window, starts from the corrected bed."""
+        records = state["round"]
+        grains = np.array([r["positions"] for r in records])
+        plates = np.array([r["plate"] for r in records])
+        cycles = np.arange(len(records), dtype=np.float64)
+        n = grains.shape[1]
+        slope = np.polyfit(cycles, grains.reshape(len(records), -1), 1)[0].reshape(n, -1)
+        now = engine.state.positions.copy()
+        rates = state.pop("jump_rates")
+        grain_shift = 0.5 * h * (self._smooth(engine, now, slope) - np.asarray(rates["grains"]))
+        plate_shift = 0.5 * h * (np.polyfit(cycles, plates, 1)[0] - np.asarray(rates["plate"]))
+        plate_before = self._plate(engine, k)
+        result = self._move_and_relax(engine, k, now + grain_shift,
+                                      engine.walls.offset[k] + plate_shift, now)
+        moved = engine.state.positions - now
+        for r in records:
+            r["positions"] = (np.asarray(r["positions"]) + moved).tolist()
+            r["plate"] = (np.asarray(r["plate"]) + plate_shift).tolist()
+        row = state["rows"][-1]
+        plate = self._plate(engine, k)
+        row.update(settlement_m=state["plate_0"] - plate, plate_height_m=plate)
+        self._save_residual(engine, state)
+        jump.update(correction_m=plate_before - plate,
+                    correction_relaxation_iterations=result.iterations,
+                    correction_largest_overlap_before=result.overlaps_before.max,
+                    correction_largest_overlap_after=result.overlaps_after.max)
+
     def _check_jump(self, engine, state, k):
         """Check the last jump on the window computed after it (jump_tolerance): its
         settlement error estimated as h |r_after - r_jump| / 2 over the settlement at
@@ -444,12 +516,21 @@ class Cycles(ProtocolPhase):
         h = jump["to_cycle"] - jump["from_cycle"]
         error = h * abs(r_after - jump["extrapolated_rate_m_per_cycle"]) \
             / (2.0 * abs(jump["settlement_m"]))
-        kept = error <= p.jump_tolerance
+        corrected = p.jump_correction != "none"
+        kept = corrected or error <= p.jump_tolerance
         factor = SAFETY * math.sqrt(p.jump_tolerance / error) if error > 0 else math.inf
-        factor = min(p.extrapolated_growth, factor) if kept else max(SHRINK, factor)
+        factor = min(p.extrapolated_growth, factor) if error <= p.jump_tolerance \
+            else max(SHRINK, factor)
         jump.update(measured_rate_m_per_cycle=r_after, estimated_error=error,
                     checked_at_cycle=state["cycle"], next_h=max(1, round(h * factor)))
         del state["unchecked"]
+        if corrected:
+            self._correct_jump(engine, state, k, jump, h)
+            state["next_h"] = jump["next_h"]
+            self.protocol.log(f"jump {jump['from_cycle']} -> {jump['to_cycle']} corrected "
+                              f"by {1e3 * jump['correction_m']:+.3g} mm: estimated error "
+                              f"{error:.3g}, next h = {jump['next_h']}")
+            return True
         if kept:
             state["next_h"] = jump["next_h"]
             self._forget_before_jump()
