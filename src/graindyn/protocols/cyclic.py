@@ -31,7 +31,9 @@ h |r_after - r_jump| / 2 the difference between the forward jump and a trapezoid
 one; a jump whose estimate exceeds the tolerance (a fraction of the settlement) is
 undone and the bed computed on instead.  This catches a jump made from a window still
 in the bed's transient, whose end the cycles computed so far cannot show
-(docs/settlement.md).
+(docs/settlement.md).  With ``jump_correction = "trapezoidal"`` no jump is undone:
+each is corrected on the window after it to what the trapezoidal jump would have made,
+as Heun's method corrects Euler's step, so that no measured window is thrown away.
 
 Two modes (Karrech Sec. 5.3).  Fully confined (``plate_fraction = 1``, the default): the
 plate is an infinite plane over the whole top of the sample.  Partially confined
