@@ -535,6 +535,11 @@ def study_settlement_beds(
                f"{100 * e['full_spread']:.2g} %")
     for cycle, (bias, se) in e["bias_at"].items():
         typer.echo(f"  cycle {cycle}: bias {100 * bias:+.2f} +- {100 * se:.2f} %")
+    after = [f"{lag}: {s / f:.2f}" for lag, (s, f, n) in
+             e["settlement_after_jumps"].items() if n and f]
+    if after:
+        typer.echo("  settlement of the computed cycles over full DEM's at the same "
+                   "cycles, by cycles since the last jump: " + ", ".join(after))
     typer.echo(f"pooled into {out}")
 
 

@@ -8,7 +8,8 @@ import pytest
 from typer.testing import CliRunner
 
 from graindyn.cli import app
-from graindyn.studies.settlement_beds import pool_beds, procedure_runs
+from graindyn.studies.settlement_beds import (pool_beds, procedure_runs,
+                                              settlement_after_jumps)
 
 RUN = "linear_ki30_k10_h20"
 SETTINGS = {"protocol.jump_tolerance": 0.005, "protocol.undone_jump": "retry"}
@@ -102,3 +103,19 @@ def test_the_command_prints_the_bias_along_the_cycles(studies, tmp_path):
     assert "cycle 10: bias -1.22 +- " in result.output
     result = CliRunner().invoke(app, ["study", "settlement-beds", str(studies[0])])
     assert result.exit_code != 0 and "at least two" in result.output
+
+
+def test_the_settlement_after_a_jump_is_set_against_full_dem_s_by_lag():
+    """Full DEM settles 1 mm a cycle; the procedure computes cycles 1-5 (before any
+    jump: left out), jumps 5 -> 10, computes 11-14 at 0.5 mm a cycle, then jumps 14 ->
+    20 and computes 21 at 2 mm: lags 1-4 after the first jump, lag 1 after the
+    second."""
+    full = [(c, 1e-3 * c, "computed") for c in range(0, 31)]
+    path = [(c, 1e-3 * c, "computed") for c in range(1, 6)] + [(10, 0.010, "extrapolated")]
+    path += [(c, 0.010 + 0.5e-3 * (c - 10), "computed") for c in range(11, 15)]
+    path += [(20, 0.020, "extrapolated"), (21, 0.022, "computed")]
+    sums = settlement_after_jumps(path, full, most=5)
+    assert sums[1] == pytest.approx([0.5e-3 + 2e-3, 2e-3, 2])
+    for lag in (2, 3, 4):
+        assert sums[lag] == pytest.approx([0.5e-3, 1e-3, 1])
+    assert sums[5] == [0.0, 0.0, 0]

@@ -57,12 +57,40 @@ def procedure_runs(summary):
     return runs
 
 
+def settlement_after_jumps(path, reference, most=15):
+    """How the procedure's bed settles in the cycles computed after each jump, against
+    full DEM at the same cycles: ``path`` [(cycle, settlement [m], source)] of a
+    procedure run, ``reference`` that of full DEM of the same bed (every cycle).  Each
+    computed cycle c that follows a reported cycle c - 1 lies some lag = c - e cycles
+    after the end e of the last jump before it; for lag = 1..``most``, returns
+    {lag: [the run's settlement over those cycles s(c) - s(c - 1), summed; full DEM's
+    over the same cycles; how many]} [m, m, -].  With no effect of the jumps on the bed
+    the two sums differ only by the chaos of both computations; a ratio below one at
+    every lag says the relaxed bed settles more slowly than the bed it stands for."""
+    full = {c: s for c, s, _ in reference}
+    path = sorted(path)
+    sums = {lag: [0.0, 0.0, 0] for lag in range(1, most + 1)}
+    end = None
+    for (c0, s0, _), (c1, s1, source) in zip(path, path[1:]):
+        if source != "computed" or c1 != c0 + 1:
+            end = c1
+            continue
+        if end is None or not 1 <= c1 - end <= most or c0 not in full or c1 not in full:
+            continue
+        row = sums[c1 - end]
+        row[0] += s1 - s0
+        row[1] += full[c1] - full[c0]
+        row[2] += 1
+    return sums
+
+
 def pool_beds(folders, out, run=None, at=None):
     """Pool the settlement studies in ``folders`` (module docstring) for the procedure
     run ``run`` (default: the one procedure run every study has, if there is one) into
     ``out``: pooled.json (the folders, their seeds, the settings and the ensemble of
     every pair, settlement.ensemble, with its bias at the cycles ``at``, default five
-    evenly spaced up to the last common cycle), pooled.csv (one row per pair: study,
+    evenly spaced up to the last common cycle, and settlement_after_jumps summed over
+    the pairs), pooled.csv (one row per pair: study,
     run, reference, settlement of both at the last common cycle and the difference,
     CPU times) and settlement_ensemble.png.  Returns the pooled dict."""
     folders = [pathlib.Path(f) for f in folders]
@@ -116,6 +144,15 @@ def pool_beds(folders, out, run=None, at=None):
                  if 1 <= c <= last})
     pooled["bias_at"] = {str(c): [pooled["path_bias"][c - 1], pooled["path_bias_se"][c - 1]]
                          for c in at}
+    after = {}
+    for p, r in pairs:
+        for lag, (run_sum, full_sum, count) in settlement_after_jumps(paths[p],
+                                                                      paths[r]).items():
+            total = after.setdefault(str(lag), [0.0, 0.0, 0])
+            total[0] += run_sum
+            total[1] += full_sum
+            total[2] += count
+    pooled["settlement_after_jumps"] = after
     result = {"folders": [str(f) for f in folders],
               "seeds": {str(s): str(f) for s, f in seeds.items()},
               "run": run, "settings": first, "ensemble": pooled}
