@@ -22,8 +22,8 @@ from graindyn.analysis.settlement import forecast_errors
 from graindyn.studies.settlement import (FULL, PARTIAL, QUICK, contact_coordination,
                                          ensemble, perturb, perturbation_of, plan,
                                          reference_of, run_from_bed,
-                                         run_settlement_study, set_dotted, study_config,
-                                         study_standing)
+                                         run_settlement_study, set_dotted,
+                                         settlement_path, study_config, study_standing)
 
 
 @pytest.fixture(scope="module")
@@ -417,3 +417,16 @@ def test_a_keep_folder_carries_the_bed_and_the_runs_to_another_folder(study, tmp
     perturb(other / "bed" / "settled.h5", 1e-9)         # another settling of the config
     with pytest.raises(ValueError, match="two different settlings"):
         run_settlement_study(other, keep=keep, echo=lambda *a: None, **args)
+
+
+def test_a_path_marks_its_jumps_and_the_cycles_that_hold_a_correction():
+    """Cycles 1-2 computed, a jump 2 -> 5, cycles 6-7 computed, the jump corrected at
+    the end of cycle 7 (jump_correction): 7 is "corrected", 5 "extrapolated"."""
+    results = {"cycles": [{"cycle": c, "settlement_m": 1e-3 * c} for c in (1, 2, 6, 7)],
+               "extrapolations": [{"to_cycle": 5, "settlement_m": 5e-3,
+                                   "checked_at_cycle": 7, "correction_m": -1e-4}]}
+    assert [(c, src) for c, _, src in settlement_path(results)] == [
+        (1, "computed"), (2, "computed"), (5, "extrapolated"), (6, "computed"),
+        (7, "corrected")]
+    del results["extrapolations"][0]["correction_m"]
+    assert settlement_path(results)[-1][2] == "computed"

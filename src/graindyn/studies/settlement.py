@@ -507,8 +507,14 @@ def _checkpoint_step(folder):
 
 def settlement_path(results):
     """[(cycle, settlement [m], source)] of a cyclic run's results, by cycle: its
-    computed cycles ("computed") and the ends of its extrapolations ("extrapolated")."""
-    path = [(r["cycle"], r["settlement_m"], "computed") for r in results["cycles"]]
+    computed cycles ("computed"; "corrected" for a cycle whose record holds the
+    correction of the jump checked at its end, protocol.jump_correction) and the ends
+    of its extrapolations ("extrapolated")."""
+    corrected = {j["checked_at_cycle"] for j in results.get("extrapolations", [])
+                 if "correction_m" in j}
+    path = [(r["cycle"], r["settlement_m"],
+             "corrected" if r["cycle"] in corrected else "computed")
+            for r in results["cycles"]]
     path += [(j["to_cycle"], j["settlement_m"], "extrapolated")
              for j in results.get("extrapolations", [])]
     return sorted(path)

@@ -62,7 +62,7 @@ def settlement_after_jumps(path, reference, most=15):
     full DEM at the same cycles: ``path`` [(cycle, settlement [m], source)] of a
     procedure run, ``reference`` that of full DEM of the same bed (every cycle).  Each
     computed cycle c that follows a reported cycle c - 1 lies some lag = c - e cycles
-    after the end e of the last jump before it; for lag = 1..``most``, returns
+    after the end e of the last jump (or of the last correction of a jump) before it; for lag = 1..``most``, returns
     {lag: [the run's settlement over those cycles s(c) - s(c - 1), summed; full DEM's
     over the same cycles; how many]} [m, m, -].  With no effect of the jumps on the bed
     the two sums differ only by the chaos of both computations; a ratio below one at
