@@ -181,10 +181,10 @@ class CyclicSettings(SettleSettings):
         "made of it, as Heun's method corrects Euler's step: every grain and the plate "
         "moved on by h (v_after - v_jump) / 2, v_jump the rate field the jump extrapolated "
         "at its end and v_after the one the window measures, then relaxed as a jump is; "
-        "the next h chosen by the same controller, at least h / 5).  Undoing a jump throws "
-        "away what the window after it measured, and the retried or later jumps then lean "
-        "on the windows whose rates stayed steady: the bursts of settlement count less "
-        "than they weigh (docs/settlement.md); a corrected jump keeps every measured window")
+        "the next h chosen by the same controller, at least h / 5).  Measured over five "
+        "pairs of beds it ends further from full DEM than undone jumps do (+7.7 +- 4.2 % "
+        "against -3.5 +- 1.4 % at 1000 cycles, docs/settlement.md): a burst in the window "
+        "after a jump is carried back over h / 2 cycles")
     keep_contacts: bool = _f(False, "the contacts still touching after an extrapolation and "
                              "its relaxation keep their history (tangential springs); "
                              "false: every contact starts unloaded (relocation)")
