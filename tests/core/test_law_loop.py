@@ -1,4 +1,5 @@
-"""The CPU's batched, vectorized law (engines/soft/law_loop.py, contacts._pair_block) against
+"""The CPU's batched, vectorized law (engines/soft/law_loop.py, contacts._pair_block; in 2D
+contacts._planar_rows) against
 the contact-by-contact evaluation (contacts.pair_row, the GPU's path): on a dense,
 polydisperse, two-material bed with spinning grains and random contact histories,
 every model composition gives the same pair forces and histories, to the bit, across
@@ -112,8 +113,9 @@ def pairs_only(sim, law, nblock):
     (("hooke", "linear", "cundall_strack"), 2), (("walton_braun", "none", "coulomb"), 2)],
     ids=lambda x: ",".join(x) if isinstance(x, tuple) else f"{x}d")
 def test_batched_law_equals_contact_by_contact(model, dim, one_thread):
-    """In 2D the pair loop's planar copy (contacts._pair_block) leaves out the z and
-    spin-x, y components: the same forces and histories, to the bit."""
+    """In 2D the pairs are evaluated one at a time as they are walked
+    (contacts._planar_rows), with the springs' scalar form: the same forces and
+    histories as pair_row, to the bit."""
     sim = bed(model, dim=dim)
     touching = len(sim.contacts()[0])
     assert touching > 300              # several batches of 128

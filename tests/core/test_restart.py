@@ -96,3 +96,56 @@ def test_reset_integrator_history_takes_hand_made_velocities():
         step = (sim.state.positions - before)[free]
         fall = np.array([0.0, 0.0, -0.5 * 9.81 * sim.dt**2])
         assert np.allclose(step, fall, rtol=1e-9, atol=0.0) == reset
+
+
+def _disks():
+    """36 disks of 5 mm piled on a floor between two walls, settling with friction."""
+    rng = np.random.default_rng(11)
+    grid = np.stack(np.meshgrid(np.arange(6), np.arange(6), [0]), -1).reshape(-1, 3)
+    positions = (grid + 0.5) * 1.02e-2 + rng.uniform(-1e-4, 1e-4, grid.shape)
+    positions[:, 2] = 0.0
+    state = gd.State.create(positions, np.full(len(grid), 5e-3), 8.0, dim=2)
+    walls = [gd.Plane((0, 0, 0), (1, 0, 0)), gd.Plane((0.062, 0, 0), (-1, 0, 0)),
+             gd.Plane((0, 0, 0), (0, 1, 0))]
+    return gd.Simulation(state, [gd.Material(density=8.0, kn=4e3, kt=1e3, restitution=0.9,
+                                             friction_sliding=0.5)],
+                         gd.ContactModel("hooke", "linear", "cundall_strack"), walls=walls,
+                         gravity=(0.0, -9.81, 0.0), dt=1e-5)
+
+
+def test_a_2d_snapshot_with_vector_springs_is_read_as_scalar_springs():
+    """A 2D snapshot written when the disks' tangential springs were vectors (no
+    "loop/springs" entry): restore turns each elongation into the scalar along
+    s = z x n (physics.tangential.tangential_planar_spring_force), so the run goes on
+    as if it had been written with scalar springs, to rounding."""
+    sim = _disks()
+    sim.run(steps=20000)
+    saved = sim.snapshot()
+    ht = int(sim.model_ids[gd.physics.registry.HISTORY + 2])
+    pairs = sim.contacts()
+    assert pairs[0].size > 20 and np.count_nonzero(saved["pairs/history"][:, ht]) > 20
+    old = {k: v.copy() for k, v in saved.items() if k != "loop/springs"}
+    # the vector form: zeta_s s, s = z x n, n from the second grain to the first
+    start, partners = saved["pairs/start"], saved["pairs/partners"]
+    first = np.repeat(np.arange(sim.state.n), np.diff(start))
+    m = int(start[-1])
+    n = saved["grains/positions"][first] - saved["grains/positions"][partners[:m]]
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    zeta = old["pairs/history"][:m, ht].copy()
+    old["pairs/history"][:m, ht] = zeta * -n[:, 1]
+    old["pairs/history"][:m, ht + 1] = zeta * n[:, 0]
+    ids = saved["wall_contacts/ids"][:int(saved["wall_contacts/start"][-1])]
+    n = np.array([(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0)])[ids]     # the planes' normals
+    zeta = old["wall_contacts/history"][:ids.size, ht].copy()
+    assert np.count_nonzero(zeta) > 3
+    old["wall_contacts/history"][:ids.size, ht] = zeta * -n[:, 1]
+    old["wall_contacts/history"][:ids.size, ht + 1] = zeta * n[:, 0]
+    again = _disks()
+    again.restore(old)
+    got = again.snapshot()
+    scale = np.abs(saved["pairs/history"][:, ht]).max()
+    np.testing.assert_allclose(got["pairs/history"], saved["pairs/history"], rtol=0,
+                               atol=1e-12 * scale)
+    np.testing.assert_allclose(got["wall_contacts/history"], saved["wall_contacts/history"],
+                               rtol=0, atol=1e-12 * scale)
+    assert got["loop/springs"][0] == 1

@@ -13,7 +13,7 @@ import pytest
 import graindyn as gd
 from graindyn.physics import registry
 from graindyn.physics.contact import contact_energy, contact_force
-from graindyn.physics.tangential import tangential_spring_force
+from graindyn.physics.tangential import tangential_planar_spring_force, tangential_spring_force
 
 R = 1e-3                 # m
 M = 1e-5                 # kg, reduced mass
@@ -195,3 +195,36 @@ def test_closed_path_check_catches_the_naive_mindlin_spring():
     works = [_cycle_work(dict(normal="hertz", tangential="mindlin"), _loop(fw), naive=True)[0]
              for fw in (True, False)]
     assert min(works) < 0
+
+
+@pytest.mark.parametrize("cap", [0, 1, 2])
+def test_planar_spring_is_the_vector_spring_of_a_disk(cap):
+    """Perez Eq. 20-23 in 2D: the scalar elongation along s = z x n
+    (tangential_planar_spring_force) against the vector spring turned into each new
+    tangent with its length kept (tangential_spring_force), over a contact whose normal
+    turns 0.02 rad a step while its slip reverses (sticking, then sliding at the cap
+    both ways, with a dashpot): the same forces and losses to rounding, and the vector
+    spring is the scalar one along s at every step."""
+    kt, eta, mu, dt = 3e4, 0.5, 0.3, 1e-5
+    vector = np.zeros((1, 3))
+    planar = np.zeros((1, 3))
+    capped = 0
+    for step in range(400):
+        angle = 0.02 * step
+        nx, ny = math.cos(angle), math.sin(angle)
+        fn = 2.0 + math.sin(0.05 * step)
+        slip = 0.4 * math.sin(0.03 * step)                 # m/s along s
+        vtx, vty = -ny * slip, nx * slip
+        fv = tangential_spring_force(kt, eta, mu, fn, cap, nx, ny, 0.0, vtx, vty, 0.0,
+                                     vector, 0, 0, dt)
+        fp = tangential_planar_spring_force(kt, eta, mu, fn, cap, nx, ny, vtx, vty, planar,
+                                            0, 0, dt)
+        scale = mu * fn + eta * abs(slip)
+        for d in range(3):
+            assert abs(fv[d] - fp[d]) <= 1e-12 * scale
+        assert abs(fv[3] - fp[3]) <= 1e-12 * scale * abs(slip) * dt + 1e-30
+        assert np.allclose(vector[0], planar[0, 0] * np.array([-ny, nx, 0.0]),
+                           rtol=0.0, atol=1e-12 * mu * fn / kt)
+        assert planar[0, 1] == planar[0, 2] == 0.0
+        capped += math.hypot(fp[0], fp[1]) >= mu * fn * (1 - 1e-12)
+    assert 20 < capped < 380                              # it stuck and it slid

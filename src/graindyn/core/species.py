@@ -109,14 +109,16 @@ class ContactModel:
         return dict(zip(registry.MODES, (self.normal, self.damping, self.tangential,
                                          self.rolling, self.twisting)))
 
-    def ids(self) -> np.ndarray:
-        """(11,) int64: law ids in registry mode order, the limit_damping flag, then each
-        mode's offset in the contact history row (registry.history_layout)."""
+    def ids(self, dim: int = 3) -> np.ndarray:
+        """(12,) int64: law ids in registry mode order, the limit_damping flag, each
+        mode's offset in the contact history row (registry.history_layout), then the
+        planar flag (registry.PLANAR: 1 for ``dim`` 2, where the springs take their 2D
+        form)."""
         names = self._names()
         ids = [registry.law_id(m, names[m]) for m in registry.MODES]
         offsets, _ = registry.history_layout(names)
-        return np.array(ids + [int(self.limit_damping)] + [offsets[m] for m in registry.MODES],
-                        dtype=np.int64)
+        return np.array(ids + [int(self.limit_damping)] + [offsets[m] for m in registry.MODES]
+                        + [int(dim == 2)], dtype=np.int64)
 
     @property
     def history_size(self) -> int:

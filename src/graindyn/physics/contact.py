@@ -14,12 +14,12 @@ from .indexing import hrow, prow
 from .normal import (normal_hertz_energy, normal_hertz_stiffness, normal_hooke_energy,
                      normal_walton_braun_energy, normal_walton_braun_force,
                      normal_walton_braun_silo_force)
-from .registry import (COL, DAMPING, HISTORY, LIMIT_DAMPING, NORMAL, ROLLING, TANGENTIAL,
-                       TWISTING)
+from .registry import (COL, DAMPING, HISTORY, LIMIT_DAMPING, NORMAL, PLANAR, ROLLING,
+                       TANGENTIAL, TWISTING)
 from .rolling import rolling_constant_torque
 from .tangential import (tangential_coulomb_force, tangential_mindlin_rescale,
                          tangential_mindlin_stiffness, tangential_oquendo_force,
-                         tangential_oquendo_literal_force,
+                         tangential_oquendo_literal_force, tangential_planar_spring_force,
                          tangential_spring_energy, tangential_spring_force)
 from .twisting import twisting_constant_torque, twisting_oquendo_torque, twisting_spring_torque
 
@@ -75,14 +75,27 @@ _BETA_I = COL["inertia_ratio"]
 
 
 @scalar
+def _spring(model, kt, eta_t, mu, fn, cap, nx, ny, nz, vtx, vty, vtz, history, k, h, dt):
+    """The capped tangential spring of a contact: its vector form
+    (tangential_spring_force), or for disks (the model's planar flag) its scalar 2D form
+    (tangential_planar_spring_force, Perez Eq. 20)."""
+    if model[PLANAR] != 0:
+        return tangential_planar_spring_force(kt, eta_t, mu, fn, cap, nx, ny, vtx, vty,
+                                              history, k, h, dt)
+    return tangential_spring_force(kt, eta_t, mu, fn, cap, nx, ny, nz, vtx, vty, vtz,
+                                   history, k, h, dt)
+
+
+@scalar
 def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz, vn, vtx,
                   vty, vtz, wx, wy, wz, history, k, dt):
     """Force on grain i and couple on i of one contact with overlap > 0.
 
-    model : (11,) int ids (normal, damping, tangential, rolling, twisting), the
+    model : (12,) int ids (normal, damping, tangential, rolling, twisting), the
         limit_damping flag (1 keeps the normal force repulsive, Perez Eq. 14, 17; 0
-        lets the dashpot pull at the end of a contact, the LAMMPS default), and the
-        five history offsets
+        lets the dashpot pull at the end of a contact, the LAMMPS default), the
+        five history offsets and the planar flag (disks: the springs of cundall_strack,
+        mindlin and karrech in their scalar 2D form)
     params[prow(a, b, col)] : the parameters of the material pair (a, b)
     (physics/indexing.py);  overlap [m];
     r_eff = R* [m];  r_roll = R'_ij [m], the reduced corrected radius of Oquendo
@@ -153,19 +166,19 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
         ftx, fty, ftz, dissipated_t = tangential_coulomb_force(
             params[prow(a, b, _MU)], cap, vtx, vty, vtz, dt)
     elif tangential == _CUNDALL:
-        ftx, fty, ftz, dissipated_t = tangential_spring_force(
-            params[prow(a, b, _KT)], params[prow(a, b, _XT)] * c, params[prow(a, b, _MU)],
-            cap, 0, nx, ny, nz, vtx, vty, vtz, history, k, ht, dt)
+        ftx, fty, ftz, dissipated_t = _spring(
+            model, params[prow(a, b, _KT)], params[prow(a, b, _XT)] * c,
+            params[prow(a, b, _MU)], cap, 0, nx, ny, nz, vtx, vty, vtz, history, k, ht, dt)
     elif tangential == _MINDLIN or tangential == _KARRECH or tangential == _OQUENDO:
         fresh = history[hrow(k, ht + 3)] == 0.0      # no contact radius stored yet: first touch
         kt, lost_t = tangential_mindlin_rescale(params[prow(a, b, _G)], radius, history, k, ht)
         if tangential == _MINDLIN:
-            ftx, fty, ftz, dissipated_t = tangential_spring_force(
-                kt, params[prow(a, b, _XT)] * c, params[prow(a, b, _MU)], cap, 0, nx, ny, nz,
-                vtx, vty, vtz, history, k, ht, dt)
+            ftx, fty, ftz, dissipated_t = _spring(
+                model, kt, params[prow(a, b, _XT)] * c, params[prow(a, b, _MU)], cap, 0, nx,
+                ny, nz, vtx, vty, vtz, history, k, ht, dt)
         elif tangential == _KARRECH:
-            ftx, fty, ftz, dissipated_t = tangential_spring_force(
-                kt, damping_karrech_coefficient(m_eff, kt, params[prow(a, b, _ALPHA_T)]),
+            ftx, fty, ftz, dissipated_t = _spring(
+                model, kt, damping_karrech_coefficient(m_eff, kt, params[prow(a, b, _ALPHA_T)]),
                 params[prow(a, b, _MU)], cap, 1, nx, ny, nz, vtx, vty, vtz, history, k, ht, dt)
         else:
             threshold = params[prow(a, b, _SLIP)]

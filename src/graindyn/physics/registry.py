@@ -93,7 +93,8 @@ LAWS = (
     Law("tangential", "coulomb", ("friction_sliding",), 0,
         "Perez Eq. 19: f = -mu_d f_n v_t/|v_t|"),
     Law("tangential", "cundall_strack", ("kt", "tangential_damping", "friction_sliding"), 3,
-        "Perez Eq. 20-23: capped spring + dashpot, 3D vector form"),
+        "Perez Eq. 20-23: capped spring + dashpot (a vector in 3D, a scalar along the "
+        "tangent in 2D)"),
     Law("tangential", "mindlin", ("shear_eff", "tangential_damping", "friction_sliding"), 4,
         "Mindlin spring kt = 8 G* sqrt(R* xi) (Karrech Eq. 6), Coulomb cap on spring + "
         "dashpot, Elata-Berryman unloading"),
@@ -121,6 +122,10 @@ LAWS = (
     Law("twisting", "epsd", ("twisting_stiffness", "twisting_damping", "friction_twisting"), 1,
         "elastic-plastic spring-dashpot about n, capped at mu_tw a |f_n|"),
 )
+
+# the tangential laws whose spring takes its scalar 2D form for disks (physics.contact,
+# tangential.tangential_planar_spring_force)
+PLANAR_SPRINGS = ("cundall_strack", "mindlin", "karrech")
 
 # where each mode's history values sit in a contact's history row, first to last
 HISTORY_ORDER = ("tangential", "normal", "rolling", "twisting", "damping")
@@ -162,7 +167,9 @@ DAMPING = {law.name: k for k, law in enumerate(laws("damping"))}
 TANGENTIAL = {law.name: k for k, law in enumerate(laws("tangential"))}
 ROLLING = {law.name: k for k, law in enumerate(laws("rolling"))}
 TWISTING = {law.name: k for k, law in enumerate(laws("twisting"))}
-# model array: the five law ids (MODES order), the limit_damping flag, then the five
-# history offsets (MODES order) at HISTORY + mode index
+# model array: the five law ids (MODES order), the limit_damping flag, the five history
+# offsets (MODES order) at HISTORY + mode index, then the planar flag (1 for disks in
+# the x-y plane: the springs take their 2D form, physics/contact.py)
 LIMIT_DAMPING = len(MODES)
 HISTORY = len(MODES) + 1
+PLANAR = HISTORY + len(MODES)

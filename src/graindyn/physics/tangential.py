@@ -2,7 +2,9 @@
 velocity of i relative to j at the contact point; each returns the force and the
 energy [J] dissipated during the step dt [s].  History values of a contact sit in
 history[hrow(k, h:h + n)], h the tangential offset of the model (registry.history_layout).
-The same functions serve disks: in 2D v_t and the spring stay in the plane.
+The same functions serve disks: in 2D v_t and the spring stay in the plane, and the
+springs of cundall_strack, mindlin and karrech take their scalar 2D form
+(tangential_planar_spring_force, chosen by physics.contact from the model's planar flag).
 """
 import math
 
@@ -90,6 +92,39 @@ def tangential_spring_force(kt, eta_t, mu, fn, cap, nx, ny, nz, vtx, vty, vtz,
     energy_after = 0.5 * kt * (zx * zx + zy * zy + zz * zz)
     work = -(fx * vtx + fy * vty + fz * vtz) * dt
     return fx, fy, fz, work - (energy_after - energy_before)
+
+
+@scalar
+def tangential_planar_spring_force(kt, eta_t, mu, fn, cap, nx, ny, vtx, vty, history, k, h,
+                                   dt):
+    """The capped spring with dashpot of tangential_spring_force for disks in the x-y
+    plane, in Perez's 2D form (Eq. 20-23): the elongation is the scalar
+    zeta = int v_s dt along s = z x n = (-n_y, n_x), which turns with the contact, so
+    nothing has to be rotated.  The same physics as the vector form, whose elongation
+    stays along s with its length kept as s turns, without its square root and
+    division per contact.  history[hrow(k, h)] holds zeta [m] (h + 1 and h + 2, the
+    vector form's other components, stay zero, so that the spring's energy
+    kt |zeta|^2 / 2 reads the same, tangential_spring_energy); ``cap`` as in
+    tangential_spring_force.  v_t (vtx, vty) [m/s] lies along s.  Returns f_t (3, its
+    z component zero) [N] and the energy dissipated in the step [J]."""
+    sx = -ny
+    sy = nx
+    slip = vtx * sx + vty * sy
+    zeta = history[hrow(k, h)]
+    energy_before = 0.5 * kt * zeta * zeta
+    zeta += slip * dt
+    viscous = eta_t if cap == 0 else 0.0
+    f = -kt * zeta - viscous * slip
+    limit = mu * fn
+    capped = abs(f) > limit
+    if capped:
+        f = math.copysign(limit, f)
+        zeta = (f + viscous * slip) * (-1.0 / kt) if kt > 0.0 else 0.0
+    if cap == 1 or (cap == 2 and not capped):
+        f -= eta_t * slip
+    history[hrow(k, h)] = zeta
+    work = -f * slip * dt
+    return f * sx, f * sy, 0.0, work - (0.5 * kt * zeta * zeta - energy_before)
 
 
 @scalar

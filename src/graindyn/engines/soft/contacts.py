@@ -211,15 +211,12 @@ def _stage(work, c, params, a, b, history, k, overlap, lever_i, lever_j, r_eff, 
 
 @scalar
 def _fill(count, work, slots, params, velocities, angular_velocities, radii, masses,
-          materials, fixed, history, planar):
+          materials, fixed, history):
     """Complete the pairs 0..count-1 gathered in ``work`` (their separations in rows
     SX..SZ, their pair, first and second grain in ``slots``) with what the law loop
     computes their geometry and law from: radii, masses, fixed flags, v_i - v_j, w_i,
     w_j, pair-table row and history.  The history is copied in a loop of its own, and
-    the slot rows are read as 1-D views (7.0 -> 6.2 ns per contact, 280-grain bed).
-    ``planar`` (2D, a constant in the caller's copy): the z velocities and the x and y
-    spins are zero, and so are their rows, which nothing else writes with another
-    value: they are not written again."""
+    the slot rows are read as 1-D views (7.0 -> 6.2 ns per contact, 280-grain bed)."""
     pairs = slots[0]
     first = slots[1]
     second = slots[2]
@@ -234,14 +231,13 @@ def _fill(count, work, slots, params, velocities, angular_velocities, radii, mas
         work[FIXED_J * STRIDE + c] = fixed[j]
         work[DVX * STRIDE + c] = velocities[i, 0] - velocities[j, 0]
         work[(DVX + 1) * STRIDE + c] = velocities[i, 1] - velocities[j, 1]
+        work[(DVX + 2) * STRIDE + c] = velocities[i, 2] - velocities[j, 2]
+        work[W_I * STRIDE + c] = angular_velocities[i, 0]
+        work[(W_I + 1) * STRIDE + c] = angular_velocities[i, 1]
         work[(W_I + 2) * STRIDE + c] = angular_velocities[i, 2]
+        work[W_J * STRIDE + c] = angular_velocities[j, 0]
+        work[(W_J + 1) * STRIDE + c] = angular_velocities[j, 1]
         work[(W_J + 2) * STRIDE + c] = angular_velocities[j, 2]
-        if not planar:
-            work[(DVX + 2) * STRIDE + c] = velocities[i, 2] - velocities[j, 2]
-            work[W_I * STRIDE + c] = angular_velocities[i, 0]
-            work[(W_I + 1) * STRIDE + c] = angular_velocities[i, 1]
-            work[W_J * STRIDE + c] = angular_velocities[j, 0]
-            work[(W_J + 1) * STRIDE + c] = angular_velocities[j, 1]
     if params.shape[0] > 1:
         for c in range(count):
             stage_row(work, c, params, materials[first[c]], materials[second[c]])
@@ -261,17 +257,15 @@ def whole_lanes(count):
 
 @scalar
 def _flush(law, work, count, slots, hi, params, velocities, angular_velocities, radii, masses,
-           materials, fixed, history, pair_force, own, pair_torque_j, dt, planar):
+           materials, fixed, history, pair_force, own, pair_torque_j, dt):
     """Complete the ``count`` contacts gathered in ``work`` (_fill), evaluate their law
     (law_loop.py) and scatter them back in gathering order: forces, histories, and the
     sums on each grain of the block (grains below ``hi``); the torque on a second grain
-    beyond the block is stored for the gather.  ``planar`` (2D): only the force in the
-    plane and the torque about z are scattered, the other components being zero (the
-    force and torque rows of a pair keep the zeros they hold).  Returns the normal and
+    beyond the block is stored for the gather.  Returns the normal and
     tangential energy dissipated [J], their largest overlap / smaller radius and how
     many of them start (touch: collisions)."""
     _fill(count, work, slots, params, velocities, angular_velocities, radii, masses,
-          materials, fixed, history, planar)
+          materials, fixed, history)
     call_law(law, work, whole_lanes(count), dt, np.int64(1))
     lost_n = 0.0
     lost_t = 0.0
@@ -284,16 +278,12 @@ def _flush(law, work, count, slots, hi, params, velocities, angular_velocities, 
         inside = j < hi
         worst = max(worst, work[RATIO * STRIDE + s])
         for d in range(3):
-            if planar and d == 2:
-                continue
             f = work[(OUTPUT + d) * STRIDE + s]
             pair_force[k, d] = f
             own[i, d] += f
             if inside:
                 own[j, d] -= f
         for d in range(3):
-            if planar and d < 2:
-                continue
             torque_j = work[(OUTPUT + 6 + d) * STRIDE + s]
             own[i, 3 + d] += work[(OUTPUT + 3 + d) * STRIDE + s]
             if inside:
@@ -313,25 +303,87 @@ def _pair_block(lo, hi, law, work, slots, dirty, model, params, positions, veloc
                 angular_velocities, radii, masses, materials, fixed, periodic_flag,
                 periodic_length, start, partners, owner, history, pair_force, own,
                 pair_torque_j, max_overlap, dt, planar):
-    """_pair_rows compiled once as a serial function, with a copy of its own for 2D
-    (``planar`` a constant there: the z components and the x and y spins fold away,
-    about a tenth of the pair forces of the 2000-disk silo bed)."""
+    """The pairs listed by grains lo..hi-1: in 3D batched through the law loop
+    (_pair_rows), for 2D disks (``planar``) one contact at a time (_planar_rows)."""
     if planar:
-        return _pair_rows(lo, hi, law, work, slots, dirty, model, params, positions,
-                          velocities, angular_velocities, radii, masses, materials, fixed,
-                          periodic_flag, periodic_length, start, partners, owner, history,
-                          pair_force, own, pair_torque_j, max_overlap, dt, np.bool_(True))
+        return _planar_rows(lo, hi, dirty, model, params, positions, velocities,
+                            angular_velocities, radii, masses, materials, fixed,
+                            periodic_flag, periodic_length, start, partners, owner, history,
+                            pair_force, own, pair_torque_j, max_overlap, dt)
     return _pair_rows(lo, hi, law, work, slots, dirty, model, params, positions, velocities,
                       angular_velocities, radii, masses, materials, fixed, periodic_flag,
                       periodic_length, start, partners, owner, history, pair_force, own,
-                      pair_torque_j, max_overlap, dt, np.bool_(False))
+                      pair_torque_j, max_overlap, dt)
+
+
+@block_body
+def _planar_rows(lo, hi, dirty, model, params, positions, velocities, angular_velocities,
+                 radii, masses, materials, fixed, periodic_flag, periodic_length, start,
+                 partners, owner, history, pair_force, own, pair_torque_j, max_overlap, dt):
+    """The pairs listed by 2D disks lo..hi-1, each touching pair's law evaluated as it
+    is met (response.contact_response) and its force and torque added to its grains at
+    once: what _pair_rows computes, in the same order, without the workspace.  In 2D
+    the law is short (the springs' scalar form, physics/tangential.py) and staging it
+    for SIMD lanes cost more than the lanes saved (BENCHMARKS.md, the 2D silo).  The
+    pairs are walked as _pair_rows walks them, in one loop over k (a loop per grain
+    was slower here too).  Writes own, pair_force (and pair_torque_j for a second
+    grain beyond the block), histories and touching marks; returns the energies and
+    the number of pairs that start (collisions)."""
+    dissipated_n = 0.0
+    dissipated_t = 0.0
+    worst = 0.0
+    started = 0
+    px, py, pz = periodic_flag[0], periodic_flag[1], periodic_flag[2]
+    lx, ly, lz = periodic_length[0], periodic_length[1], periodic_length[2]
+    for i in range(lo, hi):
+        for d in range(6):
+            own[i, d] = 0.0
+    for k in range(start[lo], start[hi]):
+        i = owner[k]
+        j = partners[k]
+        xi, yi, zi, r_i, m_i, a = grain_row(i, positions, radii, masses, materials)
+        dx, dy, dz = separation(j, xi, yi, zi, positions, px, py, pz, lx, ly, lz)
+        r_j = radii[j]
+        rsum = r_i + r_j
+        touching = dx * dx + dy * dy < rsum * rsum
+        if dirty[k] > int(touching):     # open, and perhaps not cleared yet
+            dissipated_t += opened(model, params, a, materials[j], r_i * r_j / rsum,
+                                    history, pair_force, pair_torque_j, k)
+        dirty[k] = touching
+        if not touching:
+            continue
+        overlap, ratio, lever_i, lever_j, r_eff, m_eff, nx, ny, nz = contact_geometry(
+            dx, dy, 0.0, r_i, r_j, m_i, masses[j], fixed[i], fixed[j])
+        worst = max(worst, ratio)
+        wi = angular_velocities[i, 2]
+        wj = angular_velocities[j, 2]
+        out = contact_response(
+            model, params, a, materials[j], overlap, lever_i, lever_j, r_eff, m_eff, nx, ny,
+            0.0, velocities[i, 0] - velocities[j, 0], velocities[i, 1] - velocities[j, 1],
+            0.0, 0.0, 0.0, lever_i * wi + lever_j * wj, 0.0, 0.0, wi - wj, history, k, dt)
+        pair_force[k, 0] = out[0]
+        pair_force[k, 1] = out[1]
+        own[i, 0] += out[0]
+        own[i, 1] += out[1]
+        own[i, 5] += out[5]
+        if j < hi:
+            own[j, 0] -= out[0]
+            own[j, 1] -= out[1]
+            own[j, 5] += out[8]
+        else:
+            pair_torque_j[k, 2] = out[8]
+        started += touch(history, k)
+        dissipated_n += out[9]
+        dissipated_t += out[10]
+    keep_worst(lo, hi, worst, max_overlap)
+    return dissipated_n, dissipated_t, started
 
 
 @block_body
 def _pair_rows(lo, hi, law, work, slots, dirty, model, params, positions, velocities,
                angular_velocities, radii, masses, materials, fixed, periodic_flag,
                periodic_length, start, partners, owner, history, pair_force, own,
-               pair_torque_j, max_overlap, dt, planar):
+               pair_torque_j, max_overlap, dt):
     """The pairs listed by grains lo..hi-1: the touching ones gathered CAP at a time
     into ``work`` and evaluated by the law loop (_flush); returns the energies and the
     number of pairs that start (collisions).  Same pair forces as pair_row, to the bit.
@@ -367,8 +419,7 @@ def _pair_rows(lo, hi, law, work, slots, dirty, model, params, positions, veloci
         dirty[k] = touching
         work[SX * STRIDE + count] = dx
         work[SY * STRIDE + count] = dy
-        if not planar:
-            work[SZ * STRIDE + count] = dz
+        work[SZ * STRIDE + count] = dz
         slots[0, count] = k
         slots[1, count] = i
         slots[2, count] = j
@@ -377,7 +428,7 @@ def _pair_rows(lo, hi, law, work, slots, dirty, model, params, positions, veloci
             dn, dt_, deepest, new = _flush(law, work, count, slots, hi, params, velocities,
                                            angular_velocities, radii, masses, materials,
                                            fixed, history, pair_force, own, pair_torque_j,
-                                           dt, planar)
+                                           dt)
             dissipated_n += dn
             dissipated_t += dt_
             worst = max(worst, deepest)
@@ -386,7 +437,7 @@ def _pair_rows(lo, hi, law, work, slots, dirty, model, params, positions, veloci
     if count > 0:
         dn, dt_, deepest, new = _flush(law, work, count, slots, hi, params, velocities,
                                        angular_velocities, radii, masses, materials, fixed,
-                                       history, pair_force, own, pair_torque_j, dt, planar)
+                                       history, pair_force, own, pair_torque_j, dt)
         dissipated_n += dn
         dissipated_t += dt_
         worst = max(worst, deepest)

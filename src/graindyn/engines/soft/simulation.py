@@ -19,6 +19,7 @@ from ...core.species import ContactModel, Material
 from ...core.symmetry import MASKS, SymmetryPlanes, rebuild_images
 from ...core.triggers import NO_CONDITION, pauses
 from ...core.walls import Walls
+from ...physics.registry import HISTORY, MODES, PLANAR, PLANAR_SPRINGS
 from . import energy, loop
 from .bundles import Grains, Images, Pairs, WallPairs, wall_bundle
 from .contacts import block_count
@@ -48,6 +49,31 @@ def _with_touching_marks(arrays, width):
         history = np.asarray(arrays[f"{group}/history"])
         history = np.pad(history, ((0, 0), (0, width - history.shape[1])))
         history[:, -1] = np.any(np.asarray(arrays[f"{group}/force"]) != 0.0, axis=1)
+        arrays[f"{group}/history"] = history
+    return arrays
+
+
+def _with_planar_springs(arrays, model, offset):
+    """A 2D snapshot written when the tangential springs of disks were vectors (it has
+    no "loop/springs" entry), brought up to date: each contact's elongation zeta
+    (history columns ``offset`` to ``offset`` + 2) made the scalar along s = z x n of
+    physics.tangential.tangential_planar_spring_force, when ``model`` (ContactModel)
+    has such a spring.  The normal is read from the contact's last force f, whose
+    normal part pushes the grain away (f_n > 0): with zeta = zeta_s s,
+    f.(z x zeta) = -zeta_s f_n, so zeta_s = -sign(f.(z x zeta)) |zeta|.  A contact
+    whose force is zero, or along its spring, loses the spring."""
+    arrays = dict(arrays, **{"loop/springs": np.array([1])})
+    if model.tangential not in PLANAR_SPRINGS:
+        return arrays
+    for group in ("pairs", "wall_contacts", "images"):
+        if f"{group}/history" not in arrays:
+            continue
+        history = np.array(arrays[f"{group}/history"], dtype=np.float64)
+        force = np.asarray(arrays[f"{group}/force"])
+        zx, zy = history[:, offset].copy(), history[:, offset + 1].copy()
+        across = force[:, 0] * -zy + force[:, 1] * zx
+        history[:, offset] = -np.sign(across) * np.hypot(zx, zy)
+        history[:, offset + 1:offset + 3] = 0.0
         arrays[f"{group}/history"] = history
     return arrays
 
@@ -122,7 +148,7 @@ class Simulation:
                              "image contacts")
         gravity = checked_gravity(gravity, state.dim)
         self.params = self.model.pair_table(self.materials, state.dim)
-        self.model_ids = self.model.ids()
+        self.model_ids = self.model.ids(state.dim)
         self.dt_report = time_step_report(state, self.materials, self.model, dt, integrator)
         if dt is None:
             dt = self.dt_report["suggested_dt_s"]
@@ -530,7 +556,8 @@ class Simulation:
                        "loop/reference_positions": self.reference_positions,
                        "loop/reference_offset": self.reference_offset,
                        "loop/max_overlap": self.max_overlap, "loop/clock": self.clock,
-                       "loop/counters": self.counters})
+                       "loop/counters": self.counters,
+                       "loop/springs": self.model_ids[PLANAR:PLANAR + 1]})
         return {k: np.array(v, copy=True) for k, v in arrays.items()}
 
     def _lists(self):
@@ -542,6 +569,10 @@ class Simulation:
     def restore(self, arrays):
         """Put a ``snapshot`` back (same grains, walls and model); ValueError naming the
         arrays that are missing or of the wrong shape."""
+        if "loop/springs" not in arrays:
+            arrays = _with_planar_springs(arrays, self.model, int(
+                self.model_ids[HISTORY + MODES.index("tangential")])) \
+                if self.model_ids[PLANAR] else dict(arrays, **{"loop/springs": np.array([0])})
         missing = [k for k in self.snapshot() if k not in arrays]
         if missing:
             raise ValueError(f"snapshot lacks {missing}")
