@@ -34,7 +34,7 @@ from ...core.walls import wall_distance
 from ...physics.contact import contact_release
 from .law_loop import (CAP, DVX, FIXED_I, FIXED_J, HISTORY, M_I, M_J, OUTPUT, PARAMS, R_I, R_J,
                        RATIO, STRIDE, SX, SY, SZ, TABLE, W_I, W_J, call_law, stage_geometry)
-from .response import contact_geometry, contact_response
+from .response import contact_geometry, contact_response, planar_response
 
 # most blocks of grains a pass hands to threads (Simulation.block_scratch has this size)
 MAX_BLOCKS = 64
@@ -316,12 +316,19 @@ def _pair_block(lo, hi, law, work, slots, dirty, model, params, positions, veloc
                       pair_torque_j, max_overlap, dt)
 
 
+@block
+def _opened_pair(model, params, a, b, r_eff, history, pair_force, pair_torque_j, k):
+    """``opened`` compiled apart, for a loop that calls it rarely and whose registers
+    its inlined body would take."""
+    return opened(model, params, a, b, r_eff, history, pair_force, pair_torque_j, k)
+
+
 @block_body
 def _planar_rows(lo, hi, dirty, model, params, positions, velocities, angular_velocities,
                  radii, masses, materials, fixed, periodic_flag, periodic_length, start,
                  partners, owner, history, pair_force, own, pair_torque_j, max_overlap, dt):
     """The pairs listed by 2D disks lo..hi-1, each touching pair's law evaluated as it
-    is met (response.contact_response) and its force and torque added to its grains at
+    is met (response.planar_response) and its force and torque added to its grains at
     once: what _pair_rows computes, in the same order, without the workspace.  In 2D
     the law is short (the springs' scalar form, physics/tangential.py) and staging it
     for SIMD lanes cost more than the lanes saved (BENCHMARKS.md, the 2D silo).  The
@@ -346,10 +353,12 @@ def _planar_rows(lo, hi, dirty, model, params, positions, velocities, angular_ve
         r_j = radii[j]
         rsum = r_i + r_j
         touching = dx * dx + dy * dy < rsum * rsum
-        if dirty[k] > int(touching):     # open, and perhaps not cleared yet
-            dissipated_t += opened(model, params, a, materials[j], r_i * r_j / rsum,
-                                    history, pair_force, pair_torque_j, k)
-        dirty[k] = touching
+        if dirty[k] != touching:        # a contact that starts, or one that opened
+            if not touching:
+                dissipated_t += _opened_pair(model, params, a, materials[j],
+                                             r_i * r_j / rsum, history, pair_force,
+                                             pair_torque_j, k)
+            dirty[k] = touching
         if not touching:
             continue
         overlap, ratio, lever_i, lever_j, r_eff, m_eff, nx, ny, nz = contact_geometry(
@@ -357,24 +366,24 @@ def _planar_rows(lo, hi, dirty, model, params, positions, velocities, angular_ve
         worst = max(worst, ratio)
         wi = angular_velocities[i, 2]
         wj = angular_velocities[j, 2]
-        out = contact_response(
+        fx, fy, torque_i, torque_j, dn, dt_ = planar_response(
             model, params, a, materials[j], overlap, lever_i, lever_j, r_eff, m_eff, nx, ny,
-            0.0, velocities[i, 0] - velocities[j, 0], velocities[i, 1] - velocities[j, 1],
-            0.0, 0.0, 0.0, lever_i * wi + lever_j * wj, 0.0, 0.0, wi - wj, history, k, dt)
-        pair_force[k, 0] = out[0]
-        pair_force[k, 1] = out[1]
-        own[i, 0] += out[0]
-        own[i, 1] += out[1]
-        own[i, 5] += out[5]
+            velocities[i, 0] - velocities[j, 0], velocities[i, 1] - velocities[j, 1],
+            lever_i * wi + lever_j * wj, wi - wj, history, k, dt)
+        pair_force[k, 0] = fx
+        pair_force[k, 1] = fy
+        own[i, 0] += fx
+        own[i, 1] += fy
+        own[i, 5] += torque_i
         if j < hi:
-            own[j, 0] -= out[0]
-            own[j, 1] -= out[1]
-            own[j, 5] += out[8]
+            own[j, 0] -= fx
+            own[j, 1] -= fy
+            own[j, 5] += torque_j
         else:
-            pair_torque_j[k, 2] = out[8]
+            pair_torque_j[k, 2] = torque_j
         started += touch(history, k)
-        dissipated_n += out[9]
-        dissipated_t += out[10]
+        dissipated_n += dn
+        dissipated_t += dt_
     keep_worst(lo, hi, worst, max_overlap)
     return dissipated_n, dissipated_t, started
 

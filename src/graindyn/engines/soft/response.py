@@ -35,6 +35,26 @@ def contact_response(model, params, a, b, overlap, lever_i, lever_j, r_eff, m_ef
             -mx - lever_j * cx, -my - lever_j * cy, -mz - lever_j * cz, dn, dt_)
 
 
+@inlined
+def planar_response(model, params, a, b, overlap, lever_i, lever_j, r_eff, m_eff, nx, ny,
+                    dvx, dvy, w, dw, history, k, dt):
+    """contact_response for two disks in the x-y plane (n and v in the plane, spins
+    about z), without the components that are zero there: the force on i in the plane
+    (2) [N], the torques about z on i and j [N m] and the energies dissipated [J], the
+    numbers contact_response gives.  w = R'_i w_i + R'_j w_j [m/s], dw = w_i - w_j
+    [rad/s] (their z components).  Written out because the compiler may not drop a
+    product with a zero that IEEE arithmetic keeps (0 x inf, the sign of zero)."""
+    vx = dvx + w * ny
+    vy = dvy - w * nx
+    vn = vx * nx + vy * ny
+    r_roll = lever_i if lever_j == 0.0 else lever_i * lever_j / (lever_i + lever_j)
+    fn, ftx, fty, _, _, _, mz, dn, dt_ = contact_force(
+        model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, 0.0, vn, vx - vn * nx,
+        vy - vn * ny, 0.0, 0.0, 0.0, dw, history, k, dt)
+    cz = nx * fty - ny * ftx
+    return fn * nx + ftx, fn * ny + fty, mz - lever_i * cz, -mz - lever_j * cz, dn, dt_
+
+
 @scalar
 def contact_geometry(dx, dy, dz, r_i, r_j, m_i, m_j, fixed_i, fixed_j):
     """Touching pair with separation (dx, dy, dz) = r_i - r_j [m], radii [m], masses
