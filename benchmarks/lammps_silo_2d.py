@@ -13,7 +13,9 @@ kt = 2 kn / 7, mu = 0.5, no tangential dashpot (LAMMPS's history spring; graindy
 dt = 4.4e-6 s (0.01 t_coll), neighbour skin 0.5 mm checked every step.  LAMMPS runs
 `dimension 2` with `fix enforce2d`; both read the same state, run 1000 untimed and
 STEPS timed steps, and the median of the repeats is printed with the contacts per disk
-(they must agree, else the beds differ) and the ratio.  Needs `lmp` (apt-get install
+(they must agree, else the beds differ) and the ratio, with the median and range of
+the ratios of each repeat's two runs, which ran one after the other (on a shared
+machine they see the same load more nearly than the medians do).  Needs `lmp` (apt-get install
 lammps); work files go to --work (default $TMPDIR/graindyn_silo_bench).
 """
 import argparse
@@ -171,6 +173,9 @@ def main():
     print(f"{n} disks, {steps} steps, {args.threads} thread(s): graindyn {g:.3f} s "
           f"({n * steps / g:.3e} disk-steps/s), LAMMPS {lam:.3f} s "
           f"({n * steps / lam:.3e}), LAMMPS / graindyn = {lam / g:.2f}")
+    ratios = [l / o for (o, _), (l, _) in zip(ours, theirs)]
+    print(f"LAMMPS / graindyn repeat by repeat: median {statistics.median(ratios):.2f}, "
+          f"{min(ratios):.2f} to {max(ratios):.2f}")
 
 
 if __name__ == "__main__":

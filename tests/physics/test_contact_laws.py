@@ -38,9 +38,9 @@ def _force(ids, params, history, overlap, n, v, w_lever, w_rel, dt=1e-7, lever_i
     v = np.asarray(v, float) - np.cross(w_lever, n)
     vn = float(v @ n)
     vt = v - vn * n
-    r_roll = lever_i * lever_j / (lever_i + lever_j)
-    return contact_force(ids, params, 0, 0, overlap, R / 2, r_roll, M, n[0], n[1], n[2], vn,
-                         vt[0], vt[1], vt[2], w_rel[0], w_rel[1], w_rel[2], history, 0, dt)
+    return contact_force(ids, params, 0, 0, overlap, R / 2, lever_i, lever_j, M, n[0], n[1],
+                         n[2], vn, vt[0], vt[1], vt[2], w_rel[0], w_rel[1], w_rel[2], history,
+                         0, dt)
 
 
 ALL = [dict(zip(registry.MODES, names)) for names in itertools.product(

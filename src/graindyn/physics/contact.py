@@ -87,8 +87,16 @@ def _spring(model, kt, eta_t, mu, fn, cap, nx, ny, nz, vtx, vty, vtz, history, k
 
 
 @scalar
-def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz, vn, vtx,
-                  vty, vtz, wx, wy, wz, history, k, dt):
+def _rolling_radius(lever_i, lever_j):
+    """R'_ij = R'_i R'_j / (R'_i + R'_j) [m] (Oquendo Eq. 7); R'_i against a wall
+    (lever_j = 0, R'_j infinite).  Worked out only by the laws that use it: a division
+    every contact evaluated one at a time pays for whether it is used or not."""
+    return lever_i if lever_j == 0.0 else lever_i * lever_j / (lever_i + lever_j)
+
+
+@scalar
+def contact_force(model, params, a, b, overlap, r_eff, lever_i, lever_j, m_eff, nx, ny, nz, vn,
+                  vtx, vty, vtz, wx, wy, wz, history, k, dt):
     """Force on grain i and couple on i of one contact with overlap > 0.
 
     model : (12,) int ids (normal, damping, tangential, rolling, twisting), the
@@ -98,8 +106,9 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
         mindlin and karrech in their scalar 2D form)
     params[prow(a, b, col)] : the parameters of the material pair (a, b)
     (physics/indexing.py);  overlap [m];
-    r_eff = R* [m];  r_roll = R'_ij [m], the reduced corrected radius of Oquendo
-    Eq. 7;  m_eff [kg]
+    r_eff = R* [m];  lever_i, lever_j = R'_i, R'_j [m], the corrected radii of Oquendo
+    Eq. 3-4 (lever_j = 0 for a wall), from which the laws that use it take R'_ij
+    (_rolling_radius);  m_eff [kg]
     n : unit normal from j to i;  vn = v_rel.n [m/s] (negative when approaching)
     v_t : tangential relative velocity of i at the contact point [m/s] (Oquendo Eq. 4)
     w : relative angular velocity w_i - w_j [rad/s]
@@ -182,6 +191,7 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
                 params[prow(a, b, _MU)], cap, 1, nx, ny, nz, vtx, vty, vtz, history, k, ht, dt)
         else:
             threshold = params[prow(a, b, _SLIP)]
+            r_roll = _rolling_radius(lever_i, lever_j)
             ftx, fty, ftz, dissipated_t, sliding = tangential_oquendo_force(
                 kt, params[prow(a, b, _XT)] * c, params[prow(a, b, _MU)],
                 params[prow(a, b, _MU_S)], threshold, fresh, cap, nx, ny, nz, vtx, vty, vtz,
@@ -200,6 +210,7 @@ def contact_force(model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz
         dissipated_t += lost_t
     elif tangential == _OQUENDO_LITERAL:
         mu_r = params[prow(a, b, _MU_R)]
+        r_roll = _rolling_radius(lever_i, lever_j)
         ftx, fty, ftz, dissipated_t, regime = tangential_oquendo_literal_force(
             params[prow(a, b, _MU)], params[prow(a, b, _MU_S)], mu_r,
             params[prow(a, b, _SLIP)], params[prow(a, b, _BETA_I)],

@@ -22,11 +22,9 @@ def contact_response(model, params, a, b, overlap, lever_i, lever_j, r_eff, m_ef
     vy = dvy - (wz * nx - wx * nz)
     vz = dvz - (wx * ny - wy * nx)
     vn = vx * nx + vy * ny + vz * nz
-    # R'_ij = R'_i R'_j/(R'_i + R'_j) (Oquendo Eq. 7); R'_i against a wall
-    r_roll = lever_i if lever_j == 0.0 else lever_i * lever_j / (lever_i + lever_j)
     fn, ftx, fty, ftz, mx, my, mz, dn, dt_ = contact_force(
-        model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, nz, vn, vx - vn * nx,
-        vy - vn * ny, vz - vn * nz, dwx, dwy, dwz, history, k, dt)
+        model, params, a, b, overlap, r_eff, lever_i, lever_j, m_eff, nx, ny, nz, vn,
+        vx - vn * nx, vy - vn * ny, vz - vn * nz, dwx, dwy, dwz, history, k, dt)
     cx = ny * ftz - nz * fty
     cy = nz * ftx - nx * ftz
     cz = nx * fty - ny * ftx
@@ -47,10 +45,9 @@ def planar_response(model, params, a, b, overlap, lever_i, lever_j, r_eff, m_eff
     vx = dvx + w * ny
     vy = dvy - w * nx
     vn = vx * nx + vy * ny
-    r_roll = lever_i if lever_j == 0.0 else lever_i * lever_j / (lever_i + lever_j)
     fn, ftx, fty, _, _, _, mz, dn, dt_ = contact_force(
-        model, params, a, b, overlap, r_eff, r_roll, m_eff, nx, ny, 0.0, vn, vx - vn * nx,
-        vy - vn * ny, 0.0, 0.0, 0.0, dw, history, k, dt)
+        model, params, a, b, overlap, r_eff, lever_i, lever_j, m_eff, nx, ny, 0.0, vn,
+        vx - vn * nx, vy - vn * ny, 0.0, 0.0, 0.0, dw, history, k, dt)
     cz = nx * fty - ny * ftx
     return fn * nx + ftx, fn * ny + fty, mz - lever_i * cz, -mz - lever_j * cz, dn, dt_
 
