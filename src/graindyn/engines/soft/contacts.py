@@ -316,6 +316,31 @@ def _pair_block(lo, hi, law, work, slots, dirty, model, params, positions, veloc
                       pair_torque_j, max_overlap, dt)
 
 
+@scalar
+def clear_own(lo, hi, own):
+    """Zero the force and torque sums own[i] (6) of grains lo..hi-1 before a block's
+    pair walk adds to them."""
+    for i in range(lo, hi):
+        for d in range(6):
+            own[i, d] = 0.0
+
+
+@scalar
+def walk_pair(k, owner, partners, positions, radii, masses, materials, px, py, pz, lx, ly,
+              lz):
+    """Listed pair k of a block's walk: its grains i = owner[k] and j, i's material,
+    the radii, i's mass, the separation r_i - r_j (3) [m] (the minimum image along
+    periodic directions px, py, pz of lengths lx, ly, lz), R_i + R_j [m] and whether
+    the two touch."""
+    i = owner[k]
+    j = partners[k]
+    xi, yi, zi, r_i, m_i, a = grain_row(i, positions, radii, masses, materials)
+    dx, dy, dz = separation(j, xi, yi, zi, positions, px, py, pz, lx, ly, lz)
+    r_j = radii[j]
+    rsum = r_i + r_j
+    return i, j, a, r_i, r_j, m_i, dx, dy, dz, rsum, dx * dx + dy * dy + dz * dz < rsum * rsum
+
+
 @block
 def _opened_pair(model, params, a, b, r_eff, history, pair_force, pair_torque_j, k):
     """``opened`` compiled apart, for a loop that calls it rarely and whose registers
@@ -342,17 +367,10 @@ def _planar_rows(lo, hi, dirty, model, params, positions, velocities, angular_ve
     started = 0
     px, py, pz = periodic_flag[0], periodic_flag[1], periodic_flag[2]
     lx, ly, lz = periodic_length[0], periodic_length[1], periodic_length[2]
-    for i in range(lo, hi):
-        for d in range(6):
-            own[i, d] = 0.0
+    clear_own(lo, hi, own)
     for k in range(start[lo], start[hi]):
-        i = owner[k]
-        j = partners[k]
-        xi, yi, zi, r_i, m_i, a = grain_row(i, positions, radii, masses, materials)
-        dx, dy, dz = separation(j, xi, yi, zi, positions, px, py, pz, lx, ly, lz)
-        r_j = radii[j]
-        rsum = r_i + r_j
-        touching = dx * dx + dy * dy < rsum * rsum
+        i, j, a, r_i, r_j, m_i, dx, dy, dz, rsum, touching = walk_pair(
+            k, owner, partners, positions, radii, masses, materials, px, py, pz, lx, ly, lz)
         if dirty[k] != touching:        # a contact that starts, or one that opened
             if not touching:
                 dissipated_t += _opened_pair(model, params, a, materials[j],
@@ -411,17 +429,10 @@ def _pair_rows(lo, hi, law, work, slots, dirty, model, params, positions, veloci
     count = 0
     worst = 0.0
     started = 0
-    for i in range(lo, hi):
-        for d in range(6):
-            own[i, d] = 0.0
+    clear_own(lo, hi, own)
     for k in range(start[lo], start[hi]):
-        i = owner[k]
-        j = partners[k]
-        xi, yi, zi, r_i, m_i, a = grain_row(i, positions, radii, masses, materials)
-        dx, dy, dz = separation(j, xi, yi, zi, positions, px, py, pz, lx, ly, lz)
-        r_j = radii[j]
-        rsum = r_i + r_j
-        touching = dx * dx + dy * dy + dz * dz < rsum * rsum
+        i, j, a, r_i, r_j, m_i, dx, dy, dz, rsum, touching = walk_pair(
+            k, owner, partners, positions, radii, masses, materials, px, py, pz, lx, ly, lz)
         if dirty[k] > int(touching):     # open, and perhaps not cleared yet
             dissipated_t += opened(model, params, a, materials[j], r_i * r_j / rsum,
                                     history, pair_force, pair_torque_j, k)
