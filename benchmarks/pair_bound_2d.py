@@ -12,11 +12,12 @@ v_n, a tangential spring zeta projected onto the tangent plane (its length not k
 grown by v_t dt and capped at mu |f_n| (zeta reset to the capped force); no
 energies, no per-pair force kept.
 
-``graindyn``: what graindyn's ``hooke`` + ``linear`` + ``cundall_strack`` computes
-for each contact (physics/contact.py, physics/tangential.py): the dashpot
+``graindyn``: what graindyn's ``hooke`` + ``linear`` + ``cundall_strack`` computed
+for each 2D contact while its springs were vectors in 2D too: the dashpot
 2 beta sqrt(k_n m*), the spring rotated onto the tangent plane with its length kept
-(Perez Eq. 20), the normal and tangential energy dissipated, the largest overlap /
-smaller radius, the touching mark and the force kept per pair.
+(the engine now keeps the same spring as a scalar along the tangent, Perez Eq. 20,
+physics/tangential.py), the normal and tangential energy dissipated, the largest
+overlap / smaller radius, the touching mark and the force kept per pair.
 
 Measurement code only: the engine never calls it, and no test compares its forces
 (they differ from the engine's in the order of the sums).
