@@ -28,6 +28,8 @@ import time
 import numba
 import numpy as np
 
+import graindyn  # noqa: F401  (chooses numba's threading layer before threads start)
+
 from lammps_bed import bed
 
 

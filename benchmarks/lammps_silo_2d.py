@@ -12,11 +12,13 @@ kt = 2 kn / 7, mu = 0.5, no tangential dashpot (LAMMPS's history spring; graindy
 `cundall_strack`), walls with the same law (LAMMPS `fix wall/gran`), g = 9.81 m/s^2,
 dt = 4.4e-6 s (0.01 t_coll), neighbour skin 0.5 mm checked every step.  LAMMPS runs
 `dimension 2` with `fix enforce2d`; both read the same state, run 1000 untimed and
-STEPS timed steps, and the median of the repeats is printed with the contacts per disk
-(they must agree, else the beds differ) and the ratio, with the median and range of
-the ratios of each repeat's two runs, which ran one after the other (on a shared
-machine they see the same load more nearly than the medians do).  Needs `lmp` (apt-get install
-lammps); work files go to --work (default $TMPDIR/graindyn_silo_bench).
+STEPS timed steps (graindyn on --threads numba threads, LAMMPS on as many MPI ranks),
+and the median of the repeats is printed with the contacts per disk (they must agree,
+else the beds differ) and the ratio, with the median and range of the ratios of each
+repeat's two runs, which ran one after the other (on a shared machine they see the same
+load more nearly than the medians do).  Needs `lmp` and, for more than one rank,
+`mpirun` (apt-get install lammps); work files go to --work (default
+$TMPDIR/graindyn_silo_bench).
 """
 import argparse
 import math
@@ -89,6 +91,8 @@ def bed_simulation(bed):
 def run_graindyn(bed, steps, threads):
     import numba
 
+    import graindyn  # noqa: F401  (chooses numba's threading layer before threads start)
+
     numba.set_num_threads(threads)
     sim = bed_simulation(bed)
     state = sim.state
@@ -127,7 +131,15 @@ run {steps}
 """
 
 
-def run_lammps(bed, steps, work):
+def mpi_prefix(ranks):
+    """mpirun for ``ranks`` LAMMPS ranks (none for one)."""
+    if ranks <= 1:
+        return []
+    root = ["--allow-run-as-root"] if hasattr(os, "geteuid") and os.geteuid() == 0 else []
+    return ["mpirun", *root, "-np", str(ranks)]
+
+
+def run_lammps(bed, steps, work, ranks=1):
     n = len(bed)
     data = work / f"bed_{n}.data"
     top = float(np.max(bed[:, 1] + bed[:, 2])) + 0.05
@@ -142,7 +154,8 @@ def run_lammps(bed, steps, work):
     script.write_text(LAMMPS_INPUT.format(data=data, density=DENSITY, kn=KN, kt=KT,
                                           gn=gamma_n(0.5 * mass), mu=MU, skin=SKIN,
                                           width=WIDTH, dt=DT, steps=steps))
-    out = subprocess.run(["lmp", "-in", str(script), "-log", str(work / "log.lammps")],
+    out = subprocess.run([*mpi_prefix(ranks), "lmp", "-in", str(script),
+                          "-log", str(work / "log.lammps")],
                          capture_output=True, text=True, check=True, cwd=work).stdout
     loops = re.findall(r"Loop time of ([0-9.eE+-]+) on", out)
     z = re.findall(rf"^\s*{1000 + steps}\s+([0-9.eE+-]+)", out, re.M)
@@ -164,7 +177,7 @@ def main():
     ours, theirs = [], []
     for _ in range(args.repeats):
         ours.append(run_graindyn(bed, args.steps, args.threads))
-        theirs.append(run_lammps(bed, args.steps, work))
+        theirs.append(run_lammps(bed, args.steps, work, args.threads))
         print(f"graindyn {ours[-1][0]:.3f} s (zpp {ours[-1][1]:.3f}), LAMMPS "
               f"{theirs[-1][0]:.3f} s (zpp {theirs[-1][1]:.3f})", flush=True)
     g = statistics.median(w for w, _ in ours)

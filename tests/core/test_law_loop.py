@@ -1,5 +1,5 @@
 """The CPU's batched, vectorized law (engines/soft/law_loop.py, contacts._pair_block; in 2D
-contacts._planar_rows) against
+planar._planar_rows) against
 the contact-by-contact evaluation (contacts.pair_row, the GPU's path): on a dense,
 polydisperse, two-material bed with spinning grains and random contact histories,
 every model composition gives the same pair forces and histories, to the bit, across
@@ -114,7 +114,7 @@ def pairs_only(sim, law, nblock):
     ids=lambda x: ",".join(x) if isinstance(x, tuple) else f"{x}d")
 def test_batched_law_equals_contact_by_contact(model, dim, one_thread):
     """In 2D the pairs are evaluated one at a time as they are walked
-    (contacts._planar_rows), with the springs' scalar form: the same forces and
+    (planar._planar_rows, compiled for the model), with the springs' scalar form: the same forces and
     histories as pair_row, to the bit."""
     sim = bed(model, dim=dim)
     touching = len(sim.contacts()[0])
@@ -124,8 +124,8 @@ def test_batched_law_equals_contact_by_contact(model, dim, one_thread):
     saved = {k: getattr(p, k).copy() for k in kept}
     saved_overlap = g.max_overlap.copy()
     nblock = 3
-    law = prepare(workspace(sim._law.address, nblock, sim.history_size), sim.params,
-                  p.partners.size)
+    law = prepare(workspace(sim._law.address, nblock, sim.history_size, sim._law.planar),
+                  sim.params, p.partners.size)
     pairs_only(sim, law, nblock)
     batched = {k: getattr(p, k).copy() for k in kept}
     deepest = g.max_overlap.max()            # kept by block (contacts.keep_worst)
@@ -162,8 +162,8 @@ def test_open_pair_with_only_a_stale_torque_is_cleared(one_thread):
     p.history[k] = 0.0
     p.force[k] = 0.0
     p.torque_j[k] = (1e-9, 2e-9, 3e-9)
-    law = prepare(workspace(sim._law.address, nblock, sim.history_size), sim.params,
-                  p.partners.size)
+    law = prepare(workspace(sim._law.address, nblock, sim.history_size, sim._law.planar),
+                  sim.params, p.partners.size)
     pairs_only(sim, law, nblock)
     assert np.all(p.torque_j[k] == 0.0)
 

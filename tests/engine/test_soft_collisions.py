@@ -153,8 +153,8 @@ def test_count_is_the_same_by_blocks():
     g, w, p, per = sim._grains(), sim._walls(), sim.pairs, sim._periodic()
     for nblock in (1, 3):
         p.history[:, -1] = 0.0
-        law = prepare(workspace(sim._law.address, nblock, sim.history_size), sim.params,
-                      p.partners.size)
+        law = prepare(workspace(sim._law.address, nblock, sim.history_size,
+                                sim._law.planar), sim.params, p.partners.size)
         counts = []
         for _ in range(2):
             counts.append(contact_forces(

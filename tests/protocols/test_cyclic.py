@@ -212,12 +212,16 @@ def test_final_cycles_end_the_procedure_on_computed_cycles(procedure):
 
 def test_the_window_clock_is_the_fit_s_time(procedure):
     """fit_time = "window": the same computed cycles to the bit, then an extrapolation
-    on the window's own clock, which differs from the loading clock's."""
+    on the window's own clock, which differs from the loading clock's, relaxed (its
+    overlaps removed to below 1e-3 of a radius; whether L-BFGS also reports the force
+    tolerance reached after its thousands of iterations differs from one processor's
+    rounding to another's)."""
     _, loading = procedure()
     _, window = procedure(fit_time="window")
     assert window["cycles"] == loading["cycles"]
     (a,), (b,) = loading["extrapolations"], window["extrapolations"]
-    assert (b["from_cycle"], b["to_cycle"]) == (5, 8) and b["relaxed"]
+    assert (b["from_cycle"], b["to_cycle"]) == (5, 8)
+    assert b["largest_overlap_after"] < 1e-3 < b["largest_overlap_before"]
     assert b["settlement_m"] != a["settlement_m"]
 
 

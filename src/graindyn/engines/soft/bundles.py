@@ -196,6 +196,8 @@ class LawWorkspace(NamedTuple):
     made ready by law_loop.prepare; contacts.contact_forces).
 
     address : int address of the law loop compiled for the model (law_loop.law_address)
+    planar : int address of the 2D pair walk compiled for the model
+      (planar.planar_address; 0 for a 3D system)
     work : (B, rows * STRIDE) float64 workspaces, 64-byte aligned (law_loop.py)
     slots : (B, 3, CAP) int64 pair (or wall candidate), first and second grain of each
       workspace column
@@ -205,6 +207,7 @@ class LawWorkspace(NamedTuple):
       block (contacts.touch)
     """
     address: int
+    planar: int
     work: np.ndarray
     slots: np.ndarray
     dirty: np.ndarray

@@ -33,8 +33,9 @@ from ...core.neighbors import min_image
 from ...core.walls import wall_distance
 from ...physics.contact import contact_release
 from .law_loop import (CAP, DVX, FIXED_I, FIXED_J, HISTORY, M_I, M_J, OUTPUT, PARAMS, R_I, R_J,
-                       RATIO, STRIDE, SX, SY, SZ, TABLE, W_I, W_J, call_law, stage_geometry)
-from .response import contact_geometry, contact_response, planar_response
+                       RATIO, STRIDE, SX, SY, SZ, TABLE, W_I, W_J, call_law, call_walk,
+                       stage_geometry)
+from .response import contact_geometry, contact_response
 
 # most blocks of grains a pass hands to threads (Simulation.block_scratch has this size)
 MAX_BLOCKS = 64
@@ -299,17 +300,20 @@ def _flush(law, work, count, slots, hi, params, velocities, angular_velocities, 
 
 
 @block
-def _pair_block(lo, hi, law, work, slots, dirty, model, params, positions, velocities,
+def _pair_block(lo, hi, law, walk, work, slots, dirty, model, params, positions, velocities,
                 angular_velocities, radii, masses, materials, fixed, periodic_flag,
                 periodic_length, start, partners, owner, history, pair_force, own,
-                pair_torque_j, max_overlap, dt, planar):
-    """The pairs listed by grains lo..hi-1: in 3D batched through the law loop
-    (_pair_rows), for 2D disks (``planar``) one contact at a time (_planar_rows)."""
-    if planar:
-        return _planar_rows(lo, hi, dirty, model, params, positions, velocities,
-                            angular_velocities, radii, masses, materials, fixed,
-                            periodic_flag, periodic_length, start, partners, owner, history,
-                            pair_force, own, pair_torque_j, max_overlap, dt)
+                pair_torque_j, max_overlap, dt):
+    """The pairs listed by grains lo..hi-1: in 3D batched through the law loop at
+    ``law`` (_pair_rows); for 2D disks by the pair walk compiled for the model at
+    ``walk`` (planar.py, non-zero), which leaves its energies and collisions in the
+    block's workspace ``work[0:3]``."""
+    if walk != 0:
+        call_walk(walk, lo, hi, dt, work, dirty, params, positions, velocities,
+                  angular_velocities, radii, masses, materials, fixed, periodic_flag,
+                  periodic_length, start, partners, owner, history, pair_force, own,
+                  pair_torque_j, max_overlap)
+        return work[0], work[1], np.int64(work[2])
     return _pair_rows(lo, hi, law, work, slots, dirty, model, params, positions, velocities,
                       angular_velocities, radii, masses, materials, fixed, periodic_flag,
                       periodic_length, start, partners, owner, history, pair_force, own,
@@ -339,71 +343,6 @@ def walk_pair(k, owner, partners, positions, radii, masses, materials, px, py, p
     r_j = radii[j]
     rsum = r_i + r_j
     return i, j, a, r_i, r_j, m_i, dx, dy, dz, rsum, dx * dx + dy * dy + dz * dz < rsum * rsum
-
-
-@block
-def _opened_pair(model, params, a, b, r_eff, history, pair_force, pair_torque_j, k):
-    """``opened`` compiled apart, for a loop that calls it rarely and whose registers
-    its inlined body would take."""
-    return opened(model, params, a, b, r_eff, history, pair_force, pair_torque_j, k)
-
-
-@block_body
-def _planar_rows(lo, hi, dirty, model, params, positions, velocities, angular_velocities,
-                 radii, masses, materials, fixed, periodic_flag, periodic_length, start,
-                 partners, owner, history, pair_force, own, pair_torque_j, max_overlap, dt):
-    """The pairs listed by 2D disks lo..hi-1, each touching pair's law evaluated as it
-    is met (response.planar_response) and its force and torque added to its grains at
-    once: what _pair_rows computes, in the same order, without the workspace.  In 2D
-    the law is short (the springs' scalar form, physics/tangential.py) and staging it
-    for SIMD lanes cost more than the lanes saved (BENCHMARKS.md, the 2D silo).  The
-    pairs are walked as _pair_rows walks them, in one loop over k (a loop per grain
-    was slower here too).  Writes own, pair_force (and pair_torque_j for a second
-    grain beyond the block), histories and touching marks; returns the energies and
-    the number of pairs that start (collisions)."""
-    dissipated_n = 0.0
-    dissipated_t = 0.0
-    worst = 0.0
-    started = 0
-    px, py, pz = periodic_flag[0], periodic_flag[1], periodic_flag[2]
-    lx, ly, lz = periodic_length[0], periodic_length[1], periodic_length[2]
-    clear_own(lo, hi, own)
-    for k in range(start[lo], start[hi]):
-        i, j, a, r_i, r_j, m_i, dx, dy, dz, rsum, touching = walk_pair(
-            k, owner, partners, positions, radii, masses, materials, px, py, pz, lx, ly, lz)
-        if dirty[k] != touching:        # a contact that starts, or one that opened
-            if not touching:
-                dissipated_t += _opened_pair(model, params, a, materials[j],
-                                             r_i * r_j / rsum, history, pair_force,
-                                             pair_torque_j, k)
-            dirty[k] = touching
-        if not touching:
-            continue
-        overlap, ratio, lever_i, lever_j, r_eff, m_eff, nx, ny, nz = contact_geometry(
-            dx, dy, 0.0, r_i, r_j, m_i, masses[j], fixed[i], fixed[j])
-        worst = max(worst, ratio)
-        wi = angular_velocities[i, 2]
-        wj = angular_velocities[j, 2]
-        fx, fy, torque_i, torque_j, dn, dt_ = planar_response(
-            model, params, a, materials[j], overlap, lever_i, lever_j, r_eff, m_eff, nx, ny,
-            velocities[i, 0] - velocities[j, 0], velocities[i, 1] - velocities[j, 1],
-            lever_i * wi + lever_j * wj, wi - wj, history, k, dt)
-        pair_force[k, 0] = fx
-        pair_force[k, 1] = fy
-        own[i, 0] += fx
-        own[i, 1] += fy
-        own[i, 5] += torque_i
-        if j < hi:
-            own[j, 0] -= fx
-            own[j, 1] -= fy
-            own[j, 5] += torque_j
-        else:
-            pair_torque_j[k, 2] = torque_j
-        started += touch(history, k)
-        dissipated_n += dn
-        dissipated_t += dt_
-    keep_worst(lo, hi, worst, max_overlap)
-    return dissipated_n, dissipated_t, started
 
 
 @block_body
@@ -638,19 +577,20 @@ def _wall_block(lo, hi, law, work, slots, model, params, positions, velocities,
 
 
 PAIRS = 1     # contact_forces' parts: the listed pairs, the wall contacts, or both,
-WALLS = 2     # and PLANAR for a 2D system (its own copy of the pair loop, _pair_block)
+WALLS = 2     # and PLANAR for a 2D system (its pairs by the walk at law.planar, _pair_block)
 PLANAR = 4
 
 
 @block
-def _contact_block(lo, hi, parts, law, work, slots, dirty, model, params, positions,
+def _contact_block(lo, hi, parts, law, walk, work, slots, dirty, model, params, positions,
                    velocities, angular_velocities, radii, masses, materials, fixed,
                    periodic_flag, periodic_length, start, partners, owner, history,
                    pair_force, pair_torque_j, wall_kind, wall_geometry, wall_offset, wall_velocity,
                    wall_material, wall_start, wall_ids, wall_owner, wall_history, wall_force,
                    wall_torque, own, max_overlap, dt):
-    """The pairs (_pair_block) then the wall contacts (_wall_block) of grains lo..hi-1,
-    as ``parts`` says; returns the energies and the grain-pair and grain-wall
+    """The pairs (_pair_block: by the law loop at ``law``, or the 2D pair walk at
+    ``walk`` when non-zero) then the wall contacts (_wall_block) of grains lo..hi-1, as
+    ``parts`` says; returns the energies and the grain-pair and grain-wall
     collisions."""
     dissipated_n = 0.0
     dissipated_t = 0.0
@@ -658,10 +598,10 @@ def _contact_block(lo, hi, parts, law, work, slots, dirty, model, params, positi
     wall_collisions = 0
     if parts & PAIRS:
         dissipated_n, dissipated_t, pair_collisions = _pair_block(
-            lo, hi, law, work, slots, dirty, model, params, positions, velocities,
+            lo, hi, law, walk, work, slots, dirty, model, params, positions, velocities,
             angular_velocities, radii, masses, materials, fixed, periodic_flag,
             periodic_length, start, partners, owner, history, pair_force, own,
-            pair_torque_j, max_overlap, dt, parts & PLANAR != 0)
+            pair_torque_j, max_overlap, dt)
     if parts & WALLS:
         wn, wt, wall_collisions = _wall_block(
             lo, hi, law, work, slots, model, params, positions, velocities,
@@ -686,7 +626,7 @@ def contact_forces(model, params, law, positions, velocities, angular_velocities
     owner[k], wall_owner[q] : the grain of pair k that lists it, of wall candidate q
     (neighbors.list_owners).
     law : bundles.LawWorkspace (law_loop.workspace): the address of the law loop
-    (law_loop.law_address), workspaces (nblock, ...), slots (nblock, 3, CAP), dirty
+    (law_loop.law_address) and of the 2D pair walk (planar.planar_address), workspaces (nblock, ...), slots (nblock, 3, CAP), dirty
     (one byte per pair slot), energies (nblock, 2), collisions (nblock, 2).
     pair_force[k] [N] is the force on the first grain i of pair k and pair_torque_j[k]
     [N m] the torque on its second grain j when j is in another block; own[i] (6) is
@@ -695,7 +635,8 @@ def contact_forces(model, params, law, positions, velocities, angular_velocities
     max_overlap keeps the largest overlap / min(R_i, R_j) (R_i against a wall) since the
     loop last read and reset it (keep_worst: by block on the CPU, by grain on the GPU).
     parts : PAIRS | WALLS for a step; PAIRS alone (which zeroes own first) or WALLS alone
-    (which adds to own) time or test one kind; | PLANAR in 2D.
+    (which adds to own) time or test one kind; | PLANAR in 2D (the pairs by the walk
+    at law.planar).
     Returns the energies dissipated in the step, normal and tangential [J], and the
     grain-pair and grain-wall contacts that start in it (collisions: touch), summed
     over ``nblock`` fixed blocks of grains (block_count) in block order.
@@ -703,9 +644,10 @@ def contact_forces(model, params, law, positions, velocities, angular_velocities
     n = positions.shape[0]
     address, work, slots, dirty, sums, started = \
         law.address, law.work, law.slots, law.dirty, law.sums, law.collisions
+    walk = law.planar if parts & PLANAR else 0
     if nblock == 1:    # no parallel region to enter (a few us per call); a plain int64 0
         return _contact_block(
-            np.int64(0), n, parts, address, work[0], slots[0], dirty, model, params,
+            np.int64(0), n, parts, address, walk, work[0], slots[0], dirty, model, params,
             positions, velocities, angular_velocities, radii, masses, materials, fixed,
             periodic_flag, periodic_length, start, partners, owner, history, pair_force,
             pair_torque_j, wall_kind, wall_geometry, wall_offset, wall_velocity,
@@ -713,7 +655,8 @@ def contact_forces(model, params, law, positions, velocities, angular_velocities
             own, max_overlap, dt)
     for b in prange(nblock):
         sums[b, 0], sums[b, 1], started[b, 0], started[b, 1] = _contact_block(
-            b * n // nblock, (b + 1) * n // nblock, parts, address, work[b], slots[b], dirty,
+            b * n // nblock, (b + 1) * n // nblock, parts, address, walk, work[b], slots[b],
+            dirty,
             model, params, positions, velocities, angular_velocities, radii, masses,
             materials, fixed, periodic_flag, periodic_length, start, partners, owner,
             history, pair_force, pair_torque_j, wall_kind, wall_geometry, wall_offset,

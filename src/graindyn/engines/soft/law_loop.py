@@ -25,6 +25,7 @@ import numpy as np
 from llvmlite import ir
 from numba import carray, types
 from numba.core.dispatcher import Dispatcher
+from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
 from ..._jit import callback, kernel, retarget, scalar
@@ -237,6 +238,61 @@ def law_address(model_ids):
     return _LOOPS[key].address
 
 
+# a compiled pair walk (planar.py): block lo..hi-1, dt, then the grains n, the pair
+# slots P, the history columns H, the materials M and the pair-table columns C, then
+# the data of the arrays that call_walk passes, in its order
+WALK_ARRAYS = {"work": types.float64, "dirty": types.uint8, "params": types.float64,
+               "positions": types.float64, "velocities": types.float64,
+               "angular_velocities": types.float64, "radii": types.float64,
+               "masses": types.float64, "materials": types.int32, "fixed": types.int8,
+               "periodic_flag": types.int64, "periodic_length": types.float64,
+               "start": types.int64, "partners": types.uint32, "owner": types.uint32,
+               "history": types.float64, "pair_force": types.float64, "own": types.float64,
+               "pair_torque_j": types.float64, "max_overlap": types.float64}
+WALK_SIGNATURE = types.void(types.int64, types.int64, types.float64, types.int64, types.int64,
+                            types.int64, types.int64, types.int64,
+                            *[types.voidptr] * len(WALK_ARRAYS))
+
+
+@intrinsic
+def call_walk(typingctx, address, lo, hi, dt, work, dirty, params, positions, velocities,
+              angular_velocities, radii, masses, materials, fixed, periodic_flag,
+              periodic_length, start, partners, owner, history, pair_force, own, pair_torque_j,
+              max_overlap):
+    """Run the pair walk compiled at ``address`` (WALK_SIGNATURE) on grains lo..hi-1:
+    each array (C-contiguous, of the dtype WALK_ARRAYS names) is passed as its data, with the sizes the
+    walk rebuilds them from (positions: n grains; history: P slots and H columns;
+    params: M materials and C columns)."""
+    arrays = (work, dirty, params, positions, velocities, angular_velocities, radii, masses,
+              materials, fixed, periodic_flag, periodic_length, start, partners, owner,
+              history, pair_force, own, pair_torque_j, max_overlap)
+    for (name, dtype), array in zip(WALK_ARRAYS.items(), arrays):
+        if not isinstance(array, types.Array) or array.layout != "C" or array.dtype != dtype:
+            raise TypingError(f"call_walk: {name} must be a C-contiguous array of {dtype}, "
+                              f"not {array}")
+    sig = types.void(address, lo, hi, dt, *arrays)
+
+    def codegen(context, builder, signature, args):
+        where, first, last, step = args[:4]
+        structs = [context.make_array(kind)(context, builder, value)
+                   for kind, value in zip(signature.args[4:], args[4:])]
+        named = dict(zip(WALK_ARRAYS, structs))
+
+        def extent(name, axis):
+            return builder.extract_value(named[name].shape, axis)
+        byte = ir.IntType(8).as_pointer()
+        sizes = [extent("positions", 0), extent("history", 0), extent("history", 1),
+                 extent("params", 0), extent("params", 2)]
+        data = [builder.bitcast(struct.data, byte) for struct in structs]
+        i64 = ir.IntType(64)
+        kind = ir.FunctionType(ir.VoidType(), [i64, i64, ir.DoubleType()] + [i64] * 5
+                               + [byte] * len(data))
+        builder.call(builder.inttoptr(where, kind.as_pointer()),
+                     [first, last, step] + sizes + data)
+        return context.get_dummy_value()
+    return sig, codegen
+
+
 @intrinsic
 def call_law(typingctx, address, workspace, count, dt, pairs):
     """Run the law loop at ``address`` on the first ``count`` contacts of
@@ -256,9 +312,10 @@ def call_law(typingctx, address, workspace, count, dt, pairs):
     return sig, codegen
 
 
-def workspace(address, blocks, history_size):
+def workspace(address, blocks, history_size, planar=0):
     """The law bundle (bundles.LawWorkspace) of the law loop at ``address``
-    (law_address) for ``blocks`` blocks of grains: workspaces (blocks, rows * STRIDE),
+    (law_address) and the 2D pair walk at ``planar`` (planar.planar_address; 0 in 3D)
+    for ``blocks`` blocks of grains: workspaces (blocks, rows * STRIDE),
     the pair, first and second grain of each column (blocks, 3, CAP), the pair loop's
     dirty flags (one byte per pair slot, sized by ``prepare``), the energies each
     block dissipated (blocks, 2) and the collisions it counted (blocks, 2)."""
@@ -266,7 +323,7 @@ def workspace(address, blocks, history_size):
         raise ValueError(f"a model keeps at most {MAX_HISTORY} history values")
     work = _aligned_zeros((blocks, workspace_rows(history_size) * STRIDE))
     work[:, TABLE * STRIDE:(TABLE + 1) * STRIDE] = -1.0
-    return LawWorkspace(address=address, work=work,
+    return LawWorkspace(address=address, planar=planar, work=work,
                         slots=np.zeros((blocks, 3, CAP), np.int64),
                         dirty=np.ones(0, np.uint8), sums=np.zeros((blocks, 2)),
                         collisions=np.zeros((blocks, 2), np.int64))

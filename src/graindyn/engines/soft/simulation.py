@@ -25,6 +25,7 @@ from .bundles import Grains, Images, Pairs, WallPairs, wall_bundle
 from .contacts import block_count
 from .integrators import SCHEMES, SLOTS, history_names, integrator_id
 from .law_loop import law_address, prepare, workspace as law_workspace
+from .planar import planar_address
 from .timestep import time_step_report
 
 
@@ -406,7 +407,9 @@ class Simulation:
         blocks = block_count(self.state.n, numba.get_num_threads())
         if self.block_scratch.size != blocks or self._law is None:  # first, or new threads
             self.block_scratch = np.zeros(blocks)
-            self._law = law_workspace(law_address(self.model_ids), blocks, self.history_size)
+            self._law = law_workspace(
+                law_address(self.model_ids), blocks, self.history_size,
+                planar_address(self.model_ids) if self.state.dim == 2 else 0)
         total = 0
         while True:
             self._law = prepare(self._law, self.params, self.pairs.partners.size)
