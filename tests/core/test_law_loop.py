@@ -260,3 +260,29 @@ def test_grains_of_the_walks_are_refilled_before_every_chunk(one_thread):
     np.testing.assert_array_equal(scribbled.state.positions, clean.state.positions)
     np.testing.assert_array_equal(scribbled.state.angular_velocities,
                                   clean.state.angular_velocities)
+
+
+def test_the_2d_walk_refuses_an_array_it_cannot_rebuild():
+    """law_loop.call_walk passes each array as its bare data: an array that is not
+    C-contiguous, or not of the dtype the compiled walk reads, is refused when the
+    caller compiles, with its name."""
+    import numba
+    from numba.core.errors import TypingError
+
+    from graindyn.engines.soft.law_loop import call_walk
+
+    @numba.njit
+    def walk(positions, materials):
+        n = positions.shape[0]
+        f = np.zeros(n)
+        call_walk(0, 0, n, 1e-7, f, np.zeros(1, np.uint8), np.zeros((1, 1, 1)), positions,
+                  positions, positions, f, f, materials, np.zeros(n, np.int8),
+                  np.zeros(3, np.int64), f[:3], np.zeros(n + 1, np.int64),
+                  np.zeros(1, np.uint32), np.zeros(1, np.uint32), np.zeros((1, 1)),
+                  np.zeros((1, 3)), np.zeros((n, 6)), np.zeros((1, 3)), f)
+
+    positions = np.zeros((4, 3))
+    with pytest.raises(TypingError, match="positions must be a C-contiguous array"):
+        walk(np.asfortranarray(positions), np.zeros(4, np.int32))
+    with pytest.raises(TypingError, match="materials must be a C-contiguous array of int32"):
+        walk(positions, np.zeros(4, np.int64))

@@ -260,9 +260,9 @@ def call_walk(typingctx, address, lo, hi, dt, work, dirty, params, positions, ve
               periodic_length, start, partners, owner, history, pair_force, own, pair_torque_j,
               max_overlap):
     """Run the pair walk compiled at ``address`` (WALK_SIGNATURE) on grains lo..hi-1:
-    each array (C-contiguous, of the dtype WALK_ARRAYS names) is passed as its data, with the sizes the
-    walk rebuilds them from (positions: n grains; history: P slots and H columns;
-    params: M materials and C columns)."""
+    each array (C-contiguous, of the dtype WALK_ARRAYS names) is passed as its data,
+    with the sizes the walk rebuilds them from (positions: n grains; history: P slots
+    and H columns; params: M materials and C columns)."""
     arrays = (work, dirty, params, positions, velocities, angular_velocities, radii, masses,
               materials, fixed, periodic_flag, periodic_length, start, partners, owner,
               history, pair_force, own, pair_torque_j, max_overlap)
