@@ -362,11 +362,45 @@ def test_a_corrected_jump_is_kept_and_moved_on_by_half_its_rate_error(procedure)
     assert not (out / "procedure" / "before_jump.npz").exists()
 
 
+@pytest.mark.parametrize("h, error, order, expected", [
+    (40, 0.0025, 2, 51),         # kept: 40 x 0.9 sqrt(2) = 50.9
+    (40, 0.0001, 2, 80),         # kept far below: at most extrapolated_growth = 2 times
+    (40, 0.0, 1, 80),            # no error at all: the same cap
+    (100, 0.015, 2, 52),         # undone: 100 x 0.9 sqrt(0.005 / 0.015) = 52.0
+    (100, 0.015, 1, 30),         # undone, the error taken linear in h: 100 x 0.9 / 3
+    (50, 0.5, 1, 10),            # cut by at most five
+    (3, 0.5, 2, 1),              # and to no less than one cycle
+])
+def test_the_next_jump_is_chosen_as_an_adaptive_solver_chooses_its_step(h, error, order,
+                                                                        expected):
+    """next_jump with tolerance 0.005 and growth 2: the step-size rule of an adaptive
+    ODE solver, the error of an undone jump taken to grow as h^order."""
+    from graindyn.protocols.cyclic import next_jump
+
+    assert next_jump(h, error, 0.005, 2.0, order) == expected
+
+
+def test_an_error_that_does_not_shrink_with_h_is_cut_in_one_retry():
+    """Jumps whose error is proportional to h (a rate difference the window measures
+    whatever the jump's length) and twice the tolerance at h = 100: the linear rule
+    finds a kept h in one retry, the quadratic rule needs more."""
+    from graindyn.protocols.cyclic import next_jump
+
+    def retries(order):
+        h, n = 100, 0
+        while 0.01 * h / 100 > 0.005:
+            h, n = next_jump(h, 0.01 * h / 100, 0.005, 2.0, order), n + 1
+        return n
+
+    assert retries(1) == 1 and retries(2) == 3
+
+
 @pytest.mark.parametrize("change, message", [
     (dict(jump_correction="trapezoidal"), "needs an extrapolation and"),
     (dict(jump_tolerance=-0.1), "jump_tolerance"),
     (dict(jump_tolerance=0.01, cycles=20, final_cycles=2), "final_cycles = 2 must be at "
                                                             "least"),
+    (dict(undone_error_order=3), "undone_error_order"),
 ])
 def test_bad_jump_tolerances_are_refused(change, message):
     data = copy.deepcopy(SMALL)

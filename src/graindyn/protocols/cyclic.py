@@ -81,6 +81,21 @@ PHASE_STATE = "phase_state"     # the phase's state beside the engine's arrays b
 SAFETY, SHRINK = 0.9, 0.2       # the jump controller's safety factor and its largest cut
 
 
+def next_jump(h, error, tolerance, growth, order):
+    """The next jump's length [cycles] after a jump of h cycles whose estimated error
+    (over the settlement) was ``error``, chosen as an adaptive ODE solver chooses its
+    step: kept (error <= tolerance), h 0.9 sqrt(tolerance / error), the forward jump's
+    error growing as h^2, at most ``growth`` h; undone, h 0.9 (tolerance / error)^(1 /
+    order), the error taken to grow as h^order (1: a rate difference that a shorter jump
+    does not shrink, 2: the forward jump's), at least h / 5; at least one cycle."""
+    if error <= tolerance:
+        factor = min(growth, SAFETY * math.sqrt(tolerance / error) if error > 0
+                     else math.inf)
+    else:
+        factor = max(SHRINK, SAFETY * (tolerance / error) ** (1.0 / order))
+    return max(1, round(h * factor))
+
+
 class CyclicSettings(SettleSettings):
     """Settle, then load the bed cyclically through a rigid top plate (Karrech et al.)
     over ``plate_fraction`` of the container's width: the stress on the plate's area a
@@ -174,6 +189,13 @@ class CyclicSettings(SettleSettings):
         "retries a rejected step from where it was: only the cycles computed after the "
         "undone jump are lost; when the shorter h is not shorter, as at h = 1, the window "
         "slides)")
+    undone_error_order: Literal[1, 2] = _f(
+        2, "the power of h an undone jump's error is taken to grow as when the check "
+        "chooses the shorter h (jump_tolerance): 2 (a forward jump's error, h^2 when the "
+        "rate changes smoothly over it: h 0.9 sqrt(tol / error)) or 1 (a rate difference "
+        "that does not shrink with h, as the noise of a ten-cycle window's slope or a "
+        "transient the jump started in: h 0.9 tol / error, cut at once as far as that "
+        "error needs); at least h / 5 either way")
     jump_correction: Literal["none", "trapezoidal"] = _f(
         "none", "what becomes of a checked jump (jump_tolerance) once the window after it "
         "is computed: none (kept within the tolerance, undone beyond it: undone_jump) or "
@@ -508,8 +530,9 @@ class Cycles(ProtocolPhase):
         (False).  The
         next h is chosen as an adaptive solver chooses its step, the jump's error
         taken to grow as h^2 (the forward jump's): h times 0.9 sqrt(tol / error),
-        at most extrapolated_growth times h after a kept jump, at least a fifth of h
-        after an undone one, and at least one cycle."""
+        at most extrapolated_growth times h after a kept jump; after an undone one the
+        error is taken to grow as h^undone_error_order, h times 0.9 (tol / error)^(1 /
+        order), and at least a fifth of h; at least one cycle."""
         p = self.p
         jump = state["jumps"][state["unchecked"]]
         up = self.vessel.dim - 1
@@ -520,11 +543,10 @@ class Cycles(ProtocolPhase):
             / (2.0 * abs(jump["settlement_m"]))
         corrected = p.jump_correction != "none"
         kept = corrected or error <= p.jump_tolerance
-        factor = SAFETY * math.sqrt(p.jump_tolerance / error) if error > 0 else math.inf
-        factor = min(p.extrapolated_growth, factor) if error <= p.jump_tolerance \
-            else max(SHRINK, factor)
         jump.update(measured_rate_m_per_cycle=r_after, estimated_error=error,
-                    checked_at_cycle=state["cycle"], next_h=max(1, round(h * factor)))
+                    checked_at_cycle=state["cycle"],
+                    next_h=next_jump(h, error, p.jump_tolerance, p.extrapolated_growth,
+                                     p.undone_error_order))
         del state["unchecked"]
         if corrected:
             self._correct_jump(engine, state, k, jump, h)

@@ -180,7 +180,7 @@ RUN_KEYS = ("cycles", "extrapolation", "initial_cycles", "computed_cycles",
 PROCEDURE_KEYS = ("relaxation", "relaxation_iterations", "relaxation_tolerance",
                   "smoothing", "keep_contacts", "hold_frontier", "extrapolated_growth",
                   "restart_cycles", "fit_time", "final_cycles", "jump_tolerance",
-                  "undone_jump", "jump_correction")
+                  "undone_jump", "undone_error_order", "jump_correction")
 
 
 # ------------------------------------------------------------------ configs
