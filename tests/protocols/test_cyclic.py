@@ -89,6 +89,7 @@ def test_the_bed_compacts_and_residuals_are_written(cyclic):
                                     final_cycles=5), "no cycle to extrapolate"),
     (lambda c: c["protocol"].update(relaxation="frictionless"), "relaxation"),
     (lambda c: c["protocol"].update(fit_time="wall"), "fit_time"),
+    (lambda c: c["protocol"].update(smoothing_fit="median"), "smoothing_fit"),
     (lambda c: c["walls"].update(container={"kind": "box", "lo": [0, 0, 0],
                                             "hi": [5e-3, 5e-3, 1e-2],
                                             "open_top": False}), "open-top box"),
@@ -238,17 +239,18 @@ def test_smoothed_increments_overlap_the_grains_less(procedure):
     assert b["largest_overlap_after"] < 1e-3
 
 
-def test_the_procedure_runs_on_the_quarter_model(tmp_path):
+@pytest.mark.parametrize("fit", ["mean", "linear"])
+def test_the_procedure_runs_on_the_quarter_model(tmp_path, fit):
     """The quarter of a cylinder (symmetry planes x = 0, y = 0) through the procedure
-    with smoothing, the excess relaxation and kept contacts: the relaxation converges
-    and every grain ends on its side of both planes."""
+    with smoothing (either fit), the excess relaxation and kept contacts: the
+    relaxation converges and every grain ends on its side of both planes."""
     data = copy.deepcopy(SMALL)
     data["walls"]["container"]["radius"] = 2 * RADIUS
     data["walls"]["symmetry"] = [{"axis": "x"}, {"axis": "y"}]
     data["protocol"].update({"cycles": 6, "extrapolation": "shenton", "initial_cycles": 2,
                              "computed_cycles": 2, "extrapolated_cycles": 2,
-                             "smoothing": 3.0, "relaxation": "excess",
-                             "keep_contacts": True})
+                             "smoothing": 3.0, "smoothing_fit": fit,
+                             "relaxation": "excess", "keep_contacts": True})
     data["output"]["figures"] = False
     out = tmp_path / "run"
     results = execute(validate(data), out, show_progress=False, echo=lambda *a: None)

@@ -169,6 +169,14 @@ class CyclicSettings(SettleSettings):
         "radii [-] (analysis.settlement.smooth_increments: a Gaussian of that width over "
         "the grains within three of it, mirror images across the symmetry planes); 0: "
         "every grain moved by its own fitted trend (Karrech); >= 0", ge=0)
+    smoothing_fit: Literal["mean", "linear"] = _f(
+        "mean", "how the increments are averaged over the smoothing length "
+        "(analysis.settlement.smooth_increments): mean (the Gaussian-weighted mean: "
+        "next to the plate, the floor and the walls the neighbourhood is one-sided and "
+        "the mean pulls the grains' increments towards those inside, the top grains' "
+        "descent cut by about the strain rate times 0.8 smoothing radii) or linear (the "
+        "affine field fitted to the neighbourhood by weighted least squares, evaluated "
+        "at the grain: an affine field kept at every grain, boundaries included)")
     jump_tolerance: Float = _f(
         0.0, "the largest settlement error a jump may make, over the settlement at its "
         "end [-]: each jump is checked once the window after it has been computed, its "
@@ -464,7 +472,8 @@ class Cycles(ProtocolPhase):
             return np.asarray(increments, dtype=np.float64)
         return smooth_increments(
             positions, increments, self.p.smoothing * float(np.mean(engine.state.radii)),
-            planes=[(plane.index, plane.at) for plane in self.vessel.symmetry])
+            planes=[(plane.index, plane.at) for plane in self.vessel.symmetry],
+            fit=self.p.smoothing_fit)
 
     def _move_and_relax(self, engine, k, grains, plate, allowed):
         """The plate put at offset ``plate`` and the grains relaxed from ``grains`` (N,

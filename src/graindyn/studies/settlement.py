@@ -178,9 +178,9 @@ RUN_KEYS = ("cycles", "extrapolation", "initial_cycles", "computed_cycles",
 # The procedure's own settings: given to the study (--set), they go to every run of the
 # procedure and leave the bed, which does not read them, as it is (and reusable).
 PROCEDURE_KEYS = ("relaxation", "relaxation_iterations", "relaxation_tolerance",
-                  "smoothing", "keep_contacts", "hold_frontier", "extrapolated_growth",
-                  "restart_cycles", "fit_time", "final_cycles", "jump_tolerance",
-                  "undone_jump", "undone_error_order", "jump_correction")
+                  "smoothing", "smoothing_fit", "keep_contacts", "hold_frontier",
+                  "extrapolated_growth", "restart_cycles", "fit_time", "final_cycles",
+                  "jump_tolerance", "undone_jump", "undone_error_order", "jump_correction")
 
 
 # ------------------------------------------------------------------ configs
