@@ -194,8 +194,8 @@ def smooth_increments(positions, increments, length, planes=(), fit="mean"):
     it is one-sided, and the mean pulls each grain's increment towards those of the
     grains inside.  Under a plate that compresses the bed the top grains' descent is
     then cut by about the strain rate times 0.8 length: in full DEM windows of the
-    settlement study's bed the top three radii's smoothed descent is 0.74-0.86 of the
-    unsmoothed one at length = 3 mean radii and 0.94-0.96 at 1.5
+    settlement study's beds the top three radii's smoothed descent is 0.76-0.87 of the
+    unsmoothed one at length = 3 mean radii and 0.95-0.96 at 1.5
     (docs/settlement.md).  The local linear fit reproduces an affine field at every
     grain, inside or at a boundary (the known boundary correction of kernel
     smoothing).  ``planes``: the symmetry planes [(axis, at)] of a model cut by them
