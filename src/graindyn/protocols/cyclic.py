@@ -197,13 +197,13 @@ class CyclicSettings(SettleSettings):
         "retries a rejected step from where it was: only the cycles computed after the "
         "undone jump are lost; when the shorter h is not shorter, as at h = 1, the window "
         "slides)")
-    undone_error_order: Literal[1, 2] = _f(
+    undone_error_order: Int = _f(
         2, "the power of h an undone jump's error is taken to grow as when the check "
         "chooses the shorter h (jump_tolerance): 2 (a forward jump's error, h^2 when the "
         "rate changes smoothly over it: h 0.9 sqrt(tol / error)) or 1 (a rate difference "
         "that does not shrink with h, as the noise of a ten-cycle window's slope or a "
         "transient the jump started in: h 0.9 tol / error, cut at once as far as that "
-        "error needs); at least h / 5 either way")
+        "error needs); at least h / 5 either way; 1 or 2", ge=1, le=2)
     jump_correction: Literal["none", "trapezoidal"] = _f(
         "none", "what becomes of a checked jump (jump_tolerance) once the window after it "
         "is computed: none (kept within the tolerance, undone beyond it: undone_jump) or "
