@@ -98,13 +98,14 @@ def test_grain_on_a_fixed_grain_and_on_a_wall(one_thread):
     assert small - result.positions[0, 2] == pytest.approx(expected, rel=1e-4)
 
 
-@pytest.mark.parametrize("excess", [False, True])
+@pytest.mark.parametrize("excess", ["none", "pairs", "walls"])
 @pytest.mark.parametrize("quarter", [False, True])
 def test_functional_gradient_against_finite_differences(one_thread, quarter, excess):
     """The gradient of Eq. 29 is its derivative, also with the half potentials of the
     image contacts of two symmetry planes (the quarter of the cylinder: grains near
     x = 0 and y = 0, each touching its own images and the others'), and with only the
-    overlaps beyond those of an allowed configuration entering (excess)."""
+    overlaps beyond those of an allowed configuration entering (excess: of the grain
+    pairs, or of the grain-wall contacts too, against walls placed elsewhere)."""
     rng = np.random.default_rng(7)
     n = 12
     low = [0.5e-3, 0.5e-3, 2.6e-3] if quarter else [-4e-3, -4e-3, 2.6e-3]
@@ -123,6 +124,7 @@ def test_functional_gradient_against_finite_differences(one_thread, quarter, exc
     gravity = np.array([0.0, 0.0, -G])
     reference = state.positions + rng.normal(0, 1e-4, (n, 3))
     allowed = state.positions + rng.normal(0, 3e-4, (n, 3))
+    allowed_offset = walls.offset + rng.normal(0, 3e-4, walls.offset.shape)
 
     def energy(at):
         gradient = np.zeros((n, 3))
@@ -132,7 +134,8 @@ def test_functional_gradient_against_finite_differences(one_thread, quarter, exc
                            walls.periodic_flag, walls.periodic_length, lists.wall_start,
                            lists.wall_ids, walls.kind, walls.geometry, walls.offset,
                            walls.material.astype(np.int64), lists.image_start,
-                           lists.image_codes, planes.at, allowed, excess, gradient)
+                           lists.image_codes, planes.at, allowed, excess != "none",
+                           allowed_offset, excess == "walls", gradient)
         return value, gradient
 
     value, gradient = energy(state.positions)
@@ -260,3 +263,46 @@ def test_only_the_excess_overlap_is_relaxed(one_thread):
     np.testing.assert_array_equal(kept.positions[0], allowed[0])
     with pytest.raises(ValueError, match="allowed must be the"):
         relax(state, [DIORITE], allowed=allowed[:1])
+
+
+def test_grain_wall_contacts_keep_their_allowed_overlap(one_thread):
+    """relax(allowed=, allowed_walls=): a grain resting on a steel floor with the
+    overlap of its weight, pushed 0.05 R further into it, relaxed without gravity:
+    with the walls' offsets of the resting configuration given, the contact keeps that
+    overlap (within the anchor's pull), where without them it is emptied; and a grain
+    moved on together with the floor (the whole translated) is left where it is, its
+    overlap being the allowed one against the floor where it was."""
+    r = 3e-3
+    youngs_eff = 1 / ((1 - 0.25**2) / 46.9e9 + (1 - 0.3**2) / 210e9)
+    state = gd.State.create([[0.0, 0.0, r]], [r], 2710.0)
+    weight = state.masses[0] * G
+    rest_overlap = _hertz_overlap(weight, youngs_eff, r)
+    state.positions[0, 2] = r - rest_overlap
+    floor = Walls([Plane((0, 0, 0), (0, 0, 1), material=1)])
+    allowed, offsets = state.positions.copy(), floor.offset.copy()
+    state.positions[0, 2] -= 0.05 * r
+    start = state.positions[0, 2]
+    kept = relax(state, [DIORITE, STEEL], walls=floor, gravity=(0, 0, 0), anchor=1.0,
+                 allowed=allowed, allowed_walls=offsets, force_tolerance=1e-7)
+    emptied = relax(state, [DIORITE, STEEL], walls=floor, gravity=(0, 0, 0), anchor=1.0,
+                    allowed=allowed, force_tolerance=1e-7)
+    assert kept.converged and emptied.converged
+    for result, keeps in ((kept, rest_overlap), (emptied, 0.0)):
+        height = result.positions[0, 2]
+        anchor_force = weight / r * (height - start)          # one weight per radius
+        assert r - height - keeps == pytest.approx(
+            _hertz_overlap(anchor_force, youngs_eff, r), rel=1e-3)
+    assert r - kept.positions[0, 2] > rest_overlap              # still loaded
+    assert r - emptied.positions[0, 2] < 0.2 * rest_overlap     # emptied
+    shift = np.array([0.0, 0.0, -0.05 * r])
+    floor.place(0, offsets[0] + shift)
+    state.positions[:] = allowed + shift
+    moved = relax(state, [DIORITE, STEEL], walls=floor, gravity=(0, 0, 0), anchor=1.0,
+                  allowed=allowed, allowed_walls=offsets)
+    assert moved.functional_before == 0.0 and moved.iterations == 0
+    np.testing.assert_array_equal(moved.positions, allowed + shift)
+    with pytest.raises(ValueError, match="allowed_walls needs allowed"):
+        relax(state, [DIORITE, STEEL], walls=floor, allowed_walls=offsets)
+    with pytest.raises(ValueError, match="allowed_walls must be the"):
+        relax(state, [DIORITE, STEEL], walls=floor, allowed=allowed,
+              allowed_walls=offsets[:, :2])

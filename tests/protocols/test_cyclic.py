@@ -239,6 +239,27 @@ def test_smoothed_increments_overlap_the_grains_less(procedure):
     assert b["largest_overlap_after"] < 1e-3
 
 
+def test_the_walls_keep_their_overlaps_with_excess_walls(procedure):
+    """relaxation = "excess_walls" against "excess" on the same jump (the computed
+    cycles are the same to the bit): the extrapolated bed is the same, but the
+    grain-wall contacts (the floor, the side wall and the plate, the plate against
+    where it was before the jump) enter the functional only with the overlap beyond
+    what they had, so it starts lower, converges, and leaves the contacts more loaded
+    (the excess relaxation empties the grain-wall contacts); the tolerance is the
+    settlement study's."""
+    study = dict(smoothing=3.0, keep_contacts=True, relaxation_tolerance=1e-3)
+    _, pairs = procedure(relaxation="excess", **study)
+    _, walls = procedure(relaxation="excess_walls", **study)
+    assert walls["cycles"][:5] == pairs["cycles"][:5]
+    (a,), (b,) = pairs["extrapolations"], walls["extrapolations"]
+    assert b["contacts_before"] == a["contacts_before"]
+    assert b["largest_overlap_before"] == a["largest_overlap_before"]
+    assert 0.0 <= b["functional_before_J"] < a["functional_before_J"]
+    assert a["relaxed"] and b["relaxed"]
+    assert b["largest_overlap_after"] < 0.1 * b["largest_overlap_before"]
+    assert b["median_overlap_after"] > a["median_overlap_after"]
+
+
 @pytest.mark.parametrize("fit", ["mean", "linear"])
 def test_the_procedure_runs_on_the_quarter_model(tmp_path, fit):
     """The quarter of a cylinder (symmetry planes x = 0, y = 0) through the procedure

@@ -126,7 +126,8 @@ def functional(positions, reference, radii, masses, materials, youngs, gravity, 
                free,
                start, partners, periodic_flag, periodic_length,
                wall_start, wall_ids, wall_kind, wall_geometry, wall_offset, wall_material,
-               image_start, image_codes, mirror_at, allowed, excess, gradient):
+               image_start, image_codes, mirror_at, allowed, excess, allowed_offset,
+               excess_walls, gradient):
     """Eq. 29 [J] at ``positions`` (N, 3) [m], displacements from ``reference``; writes
     its gradient (N, 3) [N] (minus the net force on each grain; 0 on grains with
     free[b] == 0).  youngs[a, b]: E* [Pa] of materials a, b; gravity (3,) [m/s^2];
@@ -137,7 +138,9 @@ def functional(positions, reference, radii, masses, materials, youngs, gravity, 
     (core/symmetry.py), half the potential of each, its whole force on its grain.
     With ``excess`` True a grain pair (or image pair) enters only with the overlap
     beyond the one it has at the ``allowed`` positions (N, 3) [m]: psi(delta -
-    delta_allowed), the Hertz potential of the excess."""
+    delta_allowed), the Hertz potential of the excess; with ``excess_walls`` True a
+    grain-wall contact too, its allowed overlap the grain's at ``allowed`` against the
+    wall at ``allowed_offset`` (W, 3) [m]."""
     n = radii.size
     energy = 0.0
     for b in range(n):
@@ -173,6 +176,10 @@ def functional(positions, reference, radii, masses, materials, youngs, gravity, 
                                              positions[i, 0], positions[i, 1],
                                              positions[i, 2])
             overlap = radii[i] - dist
+            if excess_walls:
+                dist = wall_distance(wall_kind, wall_geometry, allowed_offset, w,
+                                     allowed[i, 0], allowed[i, 1], allowed[i, 2])[0]
+                overlap -= max(0.0, radii[i] - dist)
             if overlap <= 0.0:
                 continue
             e_eff = youngs[materials[i], wall_material[w]]
@@ -320,7 +327,7 @@ def youngs_table(materials):
 
 def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), loads=None,
           skin=None, force_tolerance=1e-5, max_iterations=10000, update=False,
-          symmetry=(), anchor=0.0, allowed=None):
+          symmetry=(), anchor=0.0, allowed=None, allowed_walls=None):
     """Minimise the functional of Eq. 29 over the positions of the free grains.
 
     state : core.State (positions, radii, masses, materials);  materials : the list of
@@ -341,7 +348,11 @@ def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), l
     Hertz potential of its overlap beyond the one it has there (None: the whole
     overlap), so that a configuration moved on from a computed one (an extrapolation)
     loses its excessive overlaps and keeps the loaded contacts it had; grain-wall
-    contacts enter whole.  The overlaps reported are the whole ones.
+    contacts enter whole, unless ``allowed_walls`` (W, 3) [m], the walls' offsets in the
+    ``allowed`` configuration, is given: then each grain-wall contact too keeps the
+    overlap it has there (a bed moved on together with its loading plate keeps the
+    contacts that carry the plate and its weight on the floor).  The overlaps reported
+    are the whole ones.
     Returns a Relaxation.  Only the positions move: 2D states keep z = 0.  From a
     soft-engine run: ``relax(sim.state, materials, walls=sim.walls)``.
     """
@@ -382,6 +393,15 @@ def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), l
     if allowed.shape != (n, 3):
         raise ValueError(f"allowed must be the ({n}, 3) positions [m] of a configuration, "
                          f"got {allowed.shape}")
+    excess_walls = allowed_walls is not None
+    if excess_walls and not excess:
+        raise ValueError("allowed_walls needs allowed: the walls' offsets go with the "
+                         "grains' positions of the allowed configuration")
+    allowed_offset = walls.offset if allowed_walls is None else \
+        np.ascontiguousarray(allowed_walls, dtype=np.float64)
+    if allowed_offset.shape != walls.offset.shape:
+        raise ValueError(f"allowed_walls must be the {walls.offset.shape} offsets [m] of "
+                         f"the walls, got {allowed_offset.shape}")
     variable = np.zeros((n, 3), bool)
     variable[free == 1, :state.dim] = True
     length = float(radii.mean())
@@ -402,7 +422,7 @@ def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), l
                           walls.periodic_length, lists.wall_start, lists.wall_ids,
                           walls.kind, walls.geometry, walls.offset, wall_material,
                           lists.image_start, lists.image_codes, symmetry.at, allowed,
-                          excess, gradient)
+                          excess, allowed_offset, excess_walls, gradient)
 
     def scaled(x):
         positions[variable] = reference[variable] + x * length

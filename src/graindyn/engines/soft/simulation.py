@@ -821,7 +821,8 @@ class Simulation:
             stiffness=stiffness, max_speed=max_speed, direction=direction))
 
     def relax(self, fixed=None, force_tolerance=1e-5, gravity=True, max_iterations=10000,
-              anchor=0.0, start=None, keep_contacts=False, allowed=None):
+              anchor=0.0, start=None, keep_contacts=False, allowed=None,
+              allowed_walls=None):
         """Move the grains to the minimum of Karrech et al.'s Eq. 29 (Hertz contact
         potentials, gravity, the walls where they are, the images of the symmetry
         planes; relaxation.relax), from rest:
@@ -836,8 +837,9 @@ class Simulation:
         listed after the move keep their history (the tangential springs of Mindlin's
         and Cundall-Strack's laws), as for a configuration moved a little from a
         computed one; allowed : (N, 3) [m] a configuration whose grain-pair overlaps
-        are kept, only the excess over them relaxed (relaxation.relax).  Returns the
-        relaxation.Relaxation report."""
+        are kept, only the excess over them relaxed; allowed_walls : (W, 3) [m] the
+        walls' offsets in that configuration, with which the grain-wall contacts keep
+        theirs too (relaxation.relax).  Returns the relaxation.Relaxation report."""
         from .relaxation import relax
 
         held = self.state.fixed != 0 if fixed is None else np.asarray(fixed, bool)
@@ -849,7 +851,8 @@ class Simulation:
         result = relax(self.state, self.materials, walls=self.walls, fixed=fixed,
                        gravity=self.gravity if gravity else np.zeros(3),
                        force_tolerance=force_tolerance, max_iterations=max_iterations,
-                       symmetry=self.symmetry, anchor=anchor, allowed=allowed)
+                       symmetry=self.symmetry, anchor=anchor, allowed=allowed,
+                       allowed_walls=allowed_walls)
         self._move(free, result.positions[free], rest, forget=not keep_contacts)
         return result
 
