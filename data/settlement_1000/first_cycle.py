@@ -17,9 +17,8 @@ the plate's height) and the whole state kept (OUT/cycleC0.pkl).  From each state
 * ``exact:WIDTH:RELAXATION``: every grain put where full DEM has it H cycles on (its
   increment averaged over WIDTH mean radii first, as the procedure smooths its
   extrapolation; 0: unsmoothed), the plate where full DEM has it, relaxed as the
-  procedure relaxes an extrapolation (``excess``, ``excess_walls`` or ``kept``, the
-  contacts held at their overlaps from both sides; allowed: the positions at C0; the
-  contacts' history kept;
+  procedure relaxes an extrapolation (``excess`` or ``excess_walls``; allowed: the
+  positions at C0; the contacts' history kept;
   ``none``: not relaxed, the grains only put there, their velocities zeroed), then
   AFTER cycles from cycle C0 + H;
 * ``fit:WIDTH:RELAXATION``: the same, but every grain and the plate put where the
@@ -94,8 +93,7 @@ def main(study, out, starts, h, after, variants):
             allowed, before = grains, engine.walls.offset.copy()
         engine.relax(fixed=engine.state.fixed != 0, force_tolerance=1e-3, gravity=False,
                      anchor=1.0, start=grains, keep_contacts=True, allowed=allowed,
-                     allowed_walls=None if relaxation == "excess" else before,
-                     both_ways=relaxation == "kept")
+                     allowed_walls=None if relaxation == "excess" else before)
         state["cycle"] = to_cycle
         return to_cycle
 

@@ -98,15 +98,14 @@ def test_grain_on_a_fixed_grain_and_on_a_wall(one_thread):
     assert small - result.positions[0, 2] == pytest.approx(expected, rel=1e-4)
 
 
-@pytest.mark.parametrize("excess", ["none", "pairs", "walls", "both_ways"])
+@pytest.mark.parametrize("excess", ["none", "pairs", "walls"])
 @pytest.mark.parametrize("quarter", [False, True])
 def test_functional_gradient_against_finite_differences(one_thread, quarter, excess):
     """The gradient of Eq. 29 is its derivative, also with the half potentials of the
     image contacts of two symmetry planes (the quarter of the cylinder: grains near
     x = 0 and y = 0, each touching its own images and the others'), and with only the
     overlaps beyond those of an allowed configuration entering (excess: of the grain
-    pairs, or of the grain-wall contacts too, against walls placed elsewhere, or also
-    the shortfalls below them, both ways)."""
+    pairs, or of the grain-wall contacts too, against walls placed elsewhere)."""
     rng = np.random.default_rng(7)
     n = 12
     low = [0.5e-3, 0.5e-3, 2.6e-3] if quarter else [-4e-3, -4e-3, 2.6e-3]
@@ -136,8 +135,7 @@ def test_functional_gradient_against_finite_differences(one_thread, quarter, exc
                            lists.wall_ids, walls.kind, walls.geometry, walls.offset,
                            walls.material.astype(np.int64), lists.image_start,
                            lists.image_codes, planes.at, allowed, excess != "none",
-                           allowed_offset, excess in ("walls", "both_ways"),
-                           excess == "both_ways", gradient)
+                           allowed_offset, excess == "walls", gradient)
         return value, gradient
 
     value, gradient = energy(state.positions)
@@ -267,18 +265,6 @@ def test_only_the_excess_overlap_is_relaxed(one_thread):
         relax(state, [DIORITE], allowed=allowed[:1])
 
 
-def _resting_on_steel(r):
-    """A diorite grain of radius r [m] resting on a steel floor at z = 0 with the
-    overlap of its weight: (state, floor, weight [N], overlap [m], E* [Pa])."""
-    youngs_eff = 1 / ((1 - 0.25**2) / 46.9e9 + (1 - 0.3**2) / 210e9)
-    state = gd.State.create([[0.0, 0.0, r]], [r], 2710.0)
-    weight = state.masses[0] * G
-    rest_overlap = _hertz_overlap(weight, youngs_eff, r)
-    state.positions[0, 2] = r - rest_overlap
-    floor = Walls([Plane((0, 0, 0), (0, 0, 1), material=1)])
-    return state, floor, weight, rest_overlap, youngs_eff
-
-
 def test_grain_wall_contacts_keep_their_allowed_overlap(one_thread):
     """relax(allowed=, allowed_walls=): a grain resting on a steel floor with the
     overlap of its weight, pushed 0.05 R further into it, relaxed without gravity:
@@ -287,7 +273,12 @@ def test_grain_wall_contacts_keep_their_allowed_overlap(one_thread):
     moved on together with the floor (the whole translated) is left where it is, its
     overlap being the allowed one against the floor where it was."""
     r = 3e-3
-    state, floor, weight, rest_overlap, youngs_eff = _resting_on_steel(r)
+    youngs_eff = 1 / ((1 - 0.25**2) / 46.9e9 + (1 - 0.3**2) / 210e9)
+    state = gd.State.create([[0.0, 0.0, r]], [r], 2710.0)
+    weight = state.masses[0] * G
+    rest_overlap = _hertz_overlap(weight, youngs_eff, r)
+    state.positions[0, 2] = r - rest_overlap
+    floor = Walls([Plane((0, 0, 0), (0, 0, 1), material=1)])
     allowed, offsets = state.positions.copy(), floor.offset.copy()
     state.positions[0, 2] -= 0.05 * r
     start = state.positions[0, 2]
@@ -310,30 +301,8 @@ def test_grain_wall_contacts_keep_their_allowed_overlap(one_thread):
                   allowed=allowed, allowed_walls=offsets)
     assert moved.functional_before == 0.0 and moved.iterations == 0
     np.testing.assert_array_equal(moved.positions, allowed + shift)
-    with pytest.raises(ValueError, match="allowed_walls and both_ways need allowed"):
+    with pytest.raises(ValueError, match="allowed_walls needs allowed"):
         relax(state, [DIORITE, STEEL], walls=floor, allowed_walls=offsets)
     with pytest.raises(ValueError, match="allowed_walls must be the"):
         relax(state, [DIORITE, STEEL], walls=floor, allowed=allowed,
               allowed_walls=offsets[:, :2])
-
-
-def test_both_ways_pulls_a_loosened_contact_back(one_thread):
-    """relax(allowed=, allowed_walls=, both_ways=True): a grain resting on a steel floor
-    with the overlap of its weight, lifted to half that overlap, relaxed without
-    gravity: held at its allowed overlap from both sides, it is pulled back down to it
-    (the anchor's pull, 2e-5 weights here, leaves a shortfall below 1e-3 of it);
-    relaxed one way only, a shallower contact is left as it is (the functional is
-    zero)."""
-    r = 3e-3
-    state, floor, weight, rest_overlap, youngs_eff = _resting_on_steel(r)
-    allowed, offsets = state.positions.copy(), floor.offset.copy()
-    state.positions[0, 2] += 0.5 * rest_overlap
-    start = state.positions[0, 2]
-    common = dict(walls=floor, gravity=(0, 0, 0), anchor=1.0, allowed=allowed,
-                  allowed_walls=offsets)
-    pulled = relax(state, [DIORITE, STEEL], both_ways=True, **common)
-    left = relax(state, [DIORITE, STEEL], **common)
-    assert pulled.converged and pulled.functional_before > 0.0
-    assert r - pulled.positions[0, 2] == pytest.approx(rest_overlap, rel=1e-3)
-    assert left.functional_before == 0.0 and left.iterations == 0
-    assert left.positions[0, 2] == start

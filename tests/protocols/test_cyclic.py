@@ -260,22 +260,6 @@ def test_the_walls_keep_their_overlaps_with_excess_walls(procedure):
     assert b["median_overlap_after"] > a["median_overlap_after"]
 
 
-def test_kept_relaxation_holds_the_contacts_both_ways(procedure):
-    """relaxation = "kept" on the same jump: every contact the bed had at the end of
-    the last computed cycle held at its overlap from both sides (those the
-    extrapolation loosened pulled back), the grain-wall ones too: the relaxation
-    converges and the contacts end more loaded than with "excess_walls"."""
-    study = dict(smoothing=3.0, keep_contacts=True, relaxation_tolerance=1e-3)
-    _, walls = procedure(relaxation="excess_walls", **study)
-    _, kept = procedure(relaxation="kept", **study)
-    (a,), (b,) = walls["extrapolations"], kept["extrapolations"]
-    assert b["largest_overlap_before"] == a["largest_overlap_before"]
-    assert b["functional_before_J"] > a["functional_before_J"]      # the shortfalls too
-    assert b["relaxed"]
-    assert b["largest_overlap_after"] < 0.1 * b["largest_overlap_before"]
-    assert b["median_overlap_after"] > a["median_overlap_after"]
-
-
 @pytest.mark.parametrize("fit", ["mean", "linear"])
 def test_the_procedure_runs_on_the_quarter_model(tmp_path, fit):
     """The quarter of a cylinder (symmetry planes x = 0, y = 0) through the procedure

@@ -151,7 +151,7 @@ class CyclicSettings(SettleSettings):
         "the axis (partially confined): a disk of diameter fraction x the cylinder's "
         "diameter, or a rectangle of fraction x each side of a box (a segment of fraction "
         "x the width in 2D)", gt=0, le=1)
-    relaxation: Literal["gravity", "overlaps", "excess", "excess_walls", "kept"] = _f(
+    relaxation: Literal["gravity", "overlaps", "excess", "excess_walls"] = _f(
         "gravity", "the functional each extrapolation is relaxed by: gravity (Karrech "
         "Eq. 29: the Hertz potentials and gravity, the plate a wall where it was put), "
         "overlaps (the Hertz potentials and springs of one grain weight per mean radius "
@@ -162,9 +162,7 @@ class CyclicSettings(SettleSettings):
         "the excess is relaxed: the contacts between grains stay loaded, those with the "
         "walls and the plate are emptied) or excess_walls (as excess, and each grain-wall "
         "contact keeps the overlap it had there too, against the plate where it was "
-        "before the jump: the plate and the floor stay loaded) or kept (as excess_walls, "
-        "and a contact left with less overlap than it had is pulled back to it: every "
-        "contact is held at its overlap from both sides, new ones relaxed)")
+        "before the jump: the plate and the floor stay loaded)")
     relaxation_iterations: Int = _f(10000, "most L-BFGS iterations of a relaxation [-]; "
                                     ">= 1", ge=1)
     relaxation_tolerance: Float = _f(1e-5, "largest residual force component a relaxation "
@@ -483,9 +481,9 @@ class Cycles(ProtocolPhase):
     def _move_and_relax(self, engine, k, grains, plate, allowed):
         """The plate put at offset ``plate`` and the grains relaxed from ``grains`` (N,
         3) [m] (Eq. 29, engine.relax, as the ``relaxation`` setting says; ``allowed``:
-        the positions whose overlaps relaxation = "excess", "excess_walls" or "kept"
-        keeps, the latter two against the walls where they are before the plate is put).
-        Returns the relaxation's result."""
+        the positions whose overlaps relaxation = "excess" or "excess_walls" keeps, the
+        latter against the walls where they are before the plate is put).  Returns the
+        relaxation's result."""
         p = self.p
         held = engine.state.fixed != 0
         walls_before = engine.walls.offset.copy()
@@ -496,11 +494,9 @@ class Cycles(ProtocolPhase):
                             anchor=0.0 if p.relaxation == "gravity" else 1.0,
                             max_iterations=p.relaxation_iterations, start=grains,
                             keep_contacts=p.keep_contacts,
-                            allowed=None if p.relaxation in ("gravity", "overlaps")
-                            else allowed,
-                            allowed_walls=walls_before if p.relaxation in (
-                                "excess_walls", "kept") else None,
-                            both_ways=p.relaxation == "kept")
+                            allowed=allowed if p.relaxation.startswith("excess") else None,
+                            allowed_walls=walls_before if p.relaxation == "excess_walls"
+                            else None)
 
     def _correct_jump(self, engine, state, k, jump, h):
         """The trapezoidal correction of the last jump (jump_correction): every grain and

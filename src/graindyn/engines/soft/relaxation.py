@@ -121,25 +121,13 @@ def _separation(positions, i, j, periodic_flag, periodic_length):
             min_image(positions[i, 2] - positions[j, 2], periodic_flag[2], periodic_length[2]))
 
 
-@scalar
-def _entering_overlap(overlap, kept, both_ways):
-    """The overlap [m] a contact enters the excess functional with: overlap - kept
-    where it goes beyond the kept one (kept < 0, no contact there: the whole overlap);
-    with ``both_ways`` and kept > 0 also the shortfall below it, negative (its Hertz
-    potential then pulls the grains back to the kept overlap); otherwise 0."""
-    kept = max(0.0, kept)
-    if overlap > kept or (both_ways and kept > 0.0):
-        return overlap - kept
-    return 0.0
-
-
 @kernel
 def functional(positions, reference, radii, masses, materials, youngs, gravity, loads, anchor,
                free,
                start, partners, periodic_flag, periodic_length,
                wall_start, wall_ids, wall_kind, wall_geometry, wall_offset, wall_material,
                image_start, image_codes, mirror_at, allowed, excess, allowed_offset,
-               excess_walls, both_ways, gradient):
+               excess_walls, gradient):
     """Eq. 29 [J] at ``positions`` (N, 3) [m], displacements from ``reference``; writes
     its gradient (N, 3) [N] (minus the net force on each grain; 0 on grains with
     free[b] == 0).  youngs[a, b]: E* [Pa] of materials a, b; gravity (3,) [m/s^2];
@@ -152,9 +140,7 @@ def functional(positions, reference, radii, masses, materials, youngs, gravity, 
     beyond the one it has at the ``allowed`` positions (N, 3) [m]: psi(delta -
     delta_allowed), the Hertz potential of the excess; with ``excess_walls`` True a
     grain-wall contact too, its allowed overlap the grain's at ``allowed`` against the
-    wall at ``allowed_offset`` (W, 3) [m]; with ``both_ways`` True a contact whose
-    allowed overlap is > 0 also enters with the shortfall below it, the Hertz potential
-    of delta_allowed - delta pulling the grains back to it (_entering_overlap)."""
+    wall at ``allowed_offset`` (W, 3) [m]."""
     n = radii.size
     energy = 0.0
     for b in range(n):
@@ -170,16 +156,14 @@ def functional(positions, reference, radii, masses, materials, youngs, gravity, 
             overlap = radii[i] + radii[j] - distance
             if excess:
                 ax, ay, az = _separation(allowed, i, j, periodic_flag, periodic_length)
-                overlap = _entering_overlap(overlap, radii[i] + radii[j] - math.sqrt(
-                    ax * ax + ay * ay + az * az), both_ways)
-            if overlap == 0.0 or (overlap < 0.0 and not excess) or distance == 0.0:
+                overlap -= max(0.0, radii[i] + radii[j] - math.sqrt(ax * ax + ay * ay + az * az))
+            if overlap <= 0.0 or distance == 0.0:
                 continue
             r_eff = radii[i] * radii[j] / (radii[i] + radii[j])
             e_eff = youngs[materials[i], materials[j]]
-            depth = abs(overlap)
-            energy += normal_hertz_energy(depth, r_eff, e_eff)
-            force = normal_hertz_stiffness(math.sqrt(r_eff * depth), e_eff) * overlap
-            scale = force / distance            # > 0 pushes i along +d, j along -d
+            energy += normal_hertz_energy(overlap, r_eff, e_eff)
+            force = normal_hertz_stiffness(math.sqrt(r_eff * overlap), e_eff) * overlap
+            scale = force / distance            # the force pushes i along +d, j along -d
             gradient[i, 0] -= scale * dx
             gradient[i, 1] -= scale * dy
             gradient[i, 2] -= scale * dz
@@ -195,13 +179,12 @@ def functional(positions, reference, radii, masses, materials, youngs, gravity, 
             if excess_walls:
                 dist = wall_distance(wall_kind, wall_geometry, allowed_offset, w,
                                      allowed[i, 0], allowed[i, 1], allowed[i, 2])[0]
-                overlap = _entering_overlap(overlap, radii[i] - dist, both_ways)
-            if overlap == 0.0 or (overlap < 0.0 and not excess_walls):
+                overlap -= max(0.0, radii[i] - dist)
+            if overlap <= 0.0:
                 continue
             e_eff = youngs[materials[i], wall_material[w]]
-            depth = abs(overlap)
-            energy += normal_hertz_energy(depth, radii[i], e_eff)
-            force = normal_hertz_stiffness(math.sqrt(radii[i] * depth), e_eff) * overlap
+            energy += normal_hertz_energy(overlap, radii[i], e_eff)
+            force = normal_hertz_stiffness(math.sqrt(radii[i] * overlap), e_eff) * overlap
             gradient[i, 0] -= force * nx
             gradient[i, 1] -= force * ny
             gradient[i, 2] -= force * nz
@@ -214,15 +197,13 @@ def functional(positions, reference, radii, masses, materials, youngs, gravity, 
             if excess:
                 ax, ay, az = image_separation(i, image_codes[q], allowed, mirror_at,
                                               periodic_flag, periodic_length)
-                overlap = _entering_overlap(overlap, radii[i] + radii[j] - math.sqrt(
-                    ax * ax + ay * ay + az * az), both_ways)
-            if overlap == 0.0 or (overlap < 0.0 and not excess) or distance == 0.0:
+                overlap -= max(0.0, radii[i] + radii[j] - math.sqrt(ax * ax + ay * ay + az * az))
+            if overlap <= 0.0 or distance == 0.0:
                 continue
             r_eff = radii[i] * radii[j] / (radii[i] + radii[j])
             e_eff = youngs[materials[i], materials[j]]
-            depth = abs(overlap)
-            energy += 0.5 * normal_hertz_energy(depth, r_eff, e_eff)
-            scale = normal_hertz_stiffness(math.sqrt(r_eff * depth), e_eff) * overlap \
+            energy += 0.5 * normal_hertz_energy(overlap, r_eff, e_eff)
+            scale = normal_hertz_stiffness(math.sqrt(r_eff * overlap), e_eff) * overlap \
                 / distance
             gradient[i, 0] -= scale * dx
             gradient[i, 1] -= scale * dy
@@ -346,7 +327,7 @@ def youngs_table(materials):
 
 def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), loads=None,
           skin=None, force_tolerance=1e-5, max_iterations=10000, update=False,
-          symmetry=(), anchor=0.0, allowed=None, allowed_walls=None, both_ways=False):
+          symmetry=(), anchor=0.0, allowed=None, allowed_walls=None):
     """Minimise the functional of Eq. 29 over the positions of the free grains.
 
     state : core.State (positions, radii, masses, materials);  materials : the list of
@@ -370,12 +351,8 @@ def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), l
     contacts enter whole, unless ``allowed_walls`` (W, 3) [m], the walls' offsets in the
     ``allowed`` configuration, is given: then each grain-wall contact too keeps the
     overlap it has there (a bed moved on together with its loading plate keeps the
-    contacts that carry the plate and its weight on the floor);  both_ways : with
-    ``allowed``, a contact that overlaps there is held at that overlap from both sides,
-    pulled back to it where it has less (the Hertz potential of the shortfall), so that
-    the relaxation neither deepens nor loosens the contacts the configuration had: a
-    relaxation that only cuts the overlaps that grew loosens a computed bed moved on
-    exactly.  The overlaps reported are the whole ones.
+    contacts that carry the plate and its weight on the floor).  The overlaps reported
+    are the whole ones.
     Returns a Relaxation.  Only the positions move: 2D states keep z = 0.  From a
     soft-engine run: ``relax(sim.state, materials, walls=sim.walls)``.
     """
@@ -417,9 +394,9 @@ def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), l
         raise ValueError(f"allowed must be the ({n}, 3) positions [m] of a configuration, "
                          f"got {allowed.shape}")
     excess_walls = allowed_walls is not None
-    if (excess_walls or both_ways) and not excess:
-        raise ValueError("allowed_walls and both_ways need allowed: they refer to the "
-                         "overlaps of the allowed configuration")
+    if excess_walls and not excess:
+        raise ValueError("allowed_walls needs allowed: the walls' offsets go with the "
+                         "grains' positions of the allowed configuration")
     allowed_offset = walls.offset if allowed_walls is None else \
         np.ascontiguousarray(allowed_walls, dtype=np.float64)
     if allowed_offset.shape != walls.offset.shape:
@@ -445,7 +422,7 @@ def relax(state, materials, walls=None, fixed=None, gravity=(0.0, 0.0, -9.81), l
                           walls.periodic_length, lists.wall_start, lists.wall_ids,
                           walls.kind, walls.geometry, walls.offset, wall_material,
                           lists.image_start, lists.image_codes, symmetry.at, allowed,
-                          excess, allowed_offset, excess_walls, bool(both_ways), gradient)
+                          excess, allowed_offset, excess_walls, gradient)
 
     def scaled(x):
         positions[variable] = reference[variable] + x * length

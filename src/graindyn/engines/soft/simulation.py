@@ -822,7 +822,7 @@ class Simulation:
 
     def relax(self, fixed=None, force_tolerance=1e-5, gravity=True, max_iterations=10000,
               anchor=0.0, start=None, keep_contacts=False, allowed=None,
-              allowed_walls=None, both_ways=False):
+              allowed_walls=None):
         """Move the grains to the minimum of Karrech et al.'s Eq. 29 (Hertz contact
         potentials, gravity, the walls where they are, the images of the symmetry
         planes; relaxation.relax), from rest:
@@ -839,9 +839,7 @@ class Simulation:
         computed one; allowed : (N, 3) [m] a configuration whose grain-pair overlaps
         are kept, only the excess over them relaxed; allowed_walls : (W, 3) [m] the
         walls' offsets in that configuration, with which the grain-wall contacts keep
-        theirs too; both_ways : the contacts of that configuration also pulled back to
-        their overlap where they have less (relaxation.relax).  Returns the
-        relaxation.Relaxation report."""
+        theirs too (relaxation.relax).  Returns the relaxation.Relaxation report."""
         from .relaxation import relax
 
         held = self.state.fixed != 0 if fixed is None else np.asarray(fixed, bool)
@@ -854,7 +852,7 @@ class Simulation:
                        gravity=self.gravity if gravity else np.zeros(3),
                        force_tolerance=force_tolerance, max_iterations=max_iterations,
                        symmetry=self.symmetry, anchor=anchor, allowed=allowed,
-                       allowed_walls=allowed_walls, both_ways=both_ways)
+                       allowed_walls=allowed_walls)
         self._move(free, result.positions[free], rest, forget=not keep_contacts)
         return result
 
