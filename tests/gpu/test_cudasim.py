@@ -233,8 +233,13 @@ series_every = 5e-4
 def test_cli_run_with_backend_gpu_writes_the_cpu_run(simulated):
     """`graindyn run --backend gpu` (simulated) through the whole run driver: six grains
     poured under strong gravity into a box, about 400 steps with contacts; its
-    results.json and series.csv equal those of --backend cpu (energies to 1e-10),
-    and meta.json records the backend."""
+    results.json and series.csv equal those of --backend cpu, and meta.json records the
+    backend.  Each value of the series is held to 1e-10 of the largest value of its
+    unit in the run (energies against the largest energy, forces against the largest
+    force): the two backends round differently (compiled kernels against the
+    simulator's Python arithmetic, each with this machine's vector math), a few ulps of
+    a position that the contact stiffness turns into a larger relative change of a
+    small term, such as a contact just closing."""
     import numpy as np
 
     runs = {}
@@ -250,7 +255,12 @@ def test_cli_run_with_backend_gpu_writes_the_cpu_run(simulated):
     a, b = (np.genfromtxt(runs[b] / "series.csv", delimiter=",", skip_header=1)
             for b in ("cpu", "gpu"))
     assert a.shape == b.shape and a.shape[0] >= 3
-    assert np.allclose(a, b, rtol=1e-10, atol=0.0)
+    names = (runs["cpu"] / "series.csv").read_text().splitlines()[0].split(",")
+    units = [name.rsplit("[", 1)[-1] for name in names]
+    scale = np.array([np.abs(a[:, [k for k, v in enumerate(units) if v == u]]).max()
+                      for u in units])
+    off = np.abs(a - b) / np.where(scale > 0, scale, 1.0)
+    assert off.max() <= 1e-10, dict(zip(names, off.max(axis=0)))
 
 
 def test_simulated_ensemble_member_equals_the_system_alone(simulated):
