@@ -418,7 +418,7 @@ def study_settlement(
         "--k-fixed", help="k of the h family [default: 40].", min=2)] = None,
     h_fixed: Annotated[Optional[int], typer.Option(
         "--h-fixed", help="h of the k family [default: 10].", min=1)] = None,
-    estimator: Annotated[str, typer.Option(help="linear (Eq. 16) or shenton (Eq. 17-21).")]
+    estimator: Annotated[str, typer.Option(help="linear (Eq. 16), shenton (Eq. 17-21) or logarithmic (c + a ln t).")]
     = "shenton",
     mode: Annotated[str, typer.Option(
         help="Loading mode: fully (confined, the base's load) or partially "

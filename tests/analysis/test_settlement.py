@@ -92,6 +92,61 @@ def test_each_estimator_wins_on_its_own_law(rng):
     assert lin_error < 0.01 and lin_error < log_error / 5
 
 
+def _logarithmic(rng, times, noise):
+    """u = c + a ln t per grain and component, plus white noise [m]."""
+    c = rng.uniform(-1e-5, 1e-5, (N, 3))
+    a = rng.uniform(1e-6, 5e-6, (N, 3))
+    return c + np.log(times)[:, None, None] * a + noise * rng.standard_normal(
+        (times.size, N, 3)), c, a
+
+
+def test_logarithmic_parameters_and_extrapolation_recovered(rng):
+    """A window of 10 cycles after 500 (t from 10 s at 50 Hz), displacements measured
+    from its start: c and a recovered, and the jump of 80 cycles is a ln(1 + h / t_k)
+    exactly, where Eq. 16 carries the window's mean rate a ln(t_k / t_0) / (t_k - t_0)
+    on over the h T of the jump: by hand, 0.099013 x 1.6 s = 0.158421 against
+    ln(11.8 / 10.2) = 0.145712 (times a), 8.72 % too far."""
+    t = _times(10, start=10.0)
+    u, c, a = _logarithmic(rng, t, 0.0)
+    u = u - u[0]
+    fit = fit_residual(u, t, "logarithmic")
+    assert fit.intercept and fit.coefficients.shape == (2, N, 3)
+    assert np.allclose(fit.coefficients[1], a, rtol=1e-7)
+    assert np.allclose(fit.coefficients[0], -np.log(t[0]) * a, rtol=1e-7)
+    target = t[-1] + 80 * PERIOD
+    jump = a * np.log(target / t[-1])
+    assert relative_error(jump, fit.extrapolate(target) - u[-1]) < 1e-9
+    linear = fit_residual(u, t, "linear").extrapolate(target) - u[-1]
+    rate = a * np.log(t[-1] / t[0]) / (t[-1] - t[0])
+    assert np.allclose(linear, rate * (target - t[-1]), rtol=1e-12)
+    overshoot = np.log(t[-1] / t[0]) / (t[-1] - t[0]) * (target - t[-1]) \
+        / np.log(target / t[-1]) - 1.0
+    assert 0.0871 < overshoot < 0.0873
+    assert np.allclose(linear / jump - 1.0, overshoot, rtol=1e-9)
+
+
+def test_the_logarithmic_law_wins_on_its_own_trend_and_loses_on_a_steady_one(rng):
+    """With noise of 2 % of a cycle's increment, on a logarithmic trend the logarithmic
+    law extrapolates 80 cycles within 1 % and Eq. 16 misses by more than 5 %; on a
+    steady trend the reverse."""
+    t = _times(20, start=10.0)
+    target = t[-1] + 80 * PERIOD
+    u, c, a = _logarithmic(rng, t, 2e-10)
+    exact = c + np.log(target) * a
+    log_error = relative_error(exact - u[-1], fit_residual(u, t, "logarithmic")
+                               .extrapolate(target) - u[-1])
+    lin_error = relative_error(exact - u[-1], fit_residual(u, t, "linear")
+                               .extrapolate(target) - u[-1])
+    assert log_error < 0.01 and lin_error > 0.05
+    u, s = _linear(rng, t, 1e-10)
+    exact = (target - t[0]) * s
+    log_error = relative_error(exact - u[-1], fit_residual(u, t, "logarithmic")
+                               .extrapolate(target) - u[-1])
+    lin_error = relative_error(exact - u[-1], fit_residual(u, t, "linear")
+                               .extrapolate(target) - u[-1])
+    assert lin_error < 0.01 and log_error > 0.05
+
+
 def test_lstsq_shared_matches_a_per_column_solve(rng):
     t = 100.0 + PERIOD * np.arange(1, 41)         # ill-conditioned: cond ~ 2e8
     design = np.stack([np.ones_like(t), np.log(t), t], axis=1)

@@ -160,6 +160,22 @@ def test_the_procedure_extrapolates_relaxes_and_goes_on(procedure):
     assert residual_cycles(out) == [1, 2, 3, 4, 5, 8]
 
 
+def test_the_logarithmic_law_moves_the_plate_as_fitted_on_the_loading_clock(procedure):
+    """extrapolation = logarithmic, k_i = 2, k = 3, h = 3: the plate's descent rate at
+    the jump's end (cycle 7 to 8) is a ln(8 / 7), a fitted as c + a ln t to the plate's
+    heights at the ends of cycles 2-5 (t = 2T..5T), by hand here."""
+    _, results = procedure(extrapolation="logarithmic")
+    (jump,) = results["extrapolations"]
+    assert (jump["from_cycle"], jump["to_cycle"], jump["estimator"]) == (5, 8, "logarithmic")
+    rows = {r["cycle"]: r["plate_height_m"] for r in results["cycles"]}
+    x = np.log(np.arange(2, 6) / 50.0)
+    y = np.array([rows[c] for c in range(2, 6)])
+    a = np.sum((x - x.mean()) * (y - y.mean())) / np.sum((x - x.mean()) ** 2)
+    assert a < 0.0
+    assert jump["extrapolated_rate_m_per_cycle"] == pytest.approx(-a * math.log(8 / 7),
+                                                                  rel=1e-9)
+
+
 def test_the_overlaps_before_and_after_each_relaxation_are_kept_and_drawn(procedure):
     """relaxations/to_cycle_000008.npz holds every contact's relative overlap in the
     extrapolated configuration and after its relaxation, whose largest and median

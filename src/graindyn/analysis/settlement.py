@@ -32,6 +32,16 @@ displacement already accrued twice: on data that follow the law exactly it would
 about 2 u; the text says the second term is the estimated residual displacement
 after the last step, as the h/k term of Eq. 16 is.
 
+Logarithmic law (``"logarithmic"``).  u~(t) = c + a ln t, fitted per grain and
+component by least squares with its constant to every record at t > 0 (all k + 1 on
+the loading's clock, t_p = pT from the first cycle): the settlement law of ballast under repeated load, s_N = s_1 + a ln N
+(Shenton's own form, the one Karrech et al. cite; Eq. 17 adds the term b t to it).
+Its increment from t_k to t_k + h, a ln(1 + h / t_k), falls as 1 / t the way a
+settling bed's rate does, where Eq. 16 carries the window's rate on unchanged: on
+data that follow the law the linear estimator overshoots by a [h / t_k - ln(1 + h /
+t_k)] plus what the window's own curvature adds.  On a window far from t = 0 the
+design [1, ln t] is well conditioned where [1, ln t, t] is not (below).
+
 Least squares.  The design matrix [ln t_p, t_p] (or [1, ln t_p, t_p]) is the same for
 every grain and component, so it is factored once by a thin QR of the matrix with its
 columns scaled to unit norm, and the k x 3N right-hand side is solved in one
@@ -64,17 +74,18 @@ import numpy as np
 from scipy.linalg import solve_triangular
 from scipy.spatial import cKDTree
 
-LAWS = ("linear", "shenton")
+LAWS = ("linear", "shenton", "logarithmic")
 
 
 class ResidualTrend(NamedTuple):
     """A trend fitted to the residual displacements of a training window.
 
-    law : "linear" (Eq. 16) or "shenton" (Eq. 17-21)
-    intercept : whether the Shenton fit has a constant term (False: the paper's)
+    law : "linear" (Eq. 16), "shenton" (Eq. 17-21) or "logarithmic" (c + a ln t)
+    intercept : whether the fit has a constant term (False: the paper's Shenton fit;
+      always True for the logarithmic law)
     coefficients : (m, N, 3) per grain and component, in the order of ``basis``:
       linear: (rate [m/s],) per unit of ``times``; shenton: (a [m], b [m/s]) or
-      (c [m], a [m], b [m/s]) with the intercept
+      (c [m], a [m], b [m/s]) with the intercept; logarithmic: (c [m], a [m])
     times : (k + 1,) the training abscissae t_0..t_k
     last : (N, 3) [m] the last recorded displacement u(t_k)
     residuals : (k, N, 3) [m] xi_p = u_p - u~(t_p) at p = 1..k (Eq. 14, 18); for the
@@ -94,7 +105,8 @@ class ResidualTrend(NamedTuple):
         t = np.asarray(times, dtype=np.float64).reshape(-1)
         if self.law == "linear":
             return (t - self.times[0])[:, None, None] * self.coefficients[0]
-        return np.einsum("tm,mnd->tnd", _shenton_basis(t, self.intercept), self.coefficients)
+        return np.einsum("tm,mnd->tnd", _basis(self.law, t, self.intercept),
+                         self.coefficients)
 
     def extrapolate(self, time):
         """u^ at ``time`` (a scalar after t_k): the last known displacement plus the
@@ -128,8 +140,10 @@ def _check(displacements, times):
     return u, t
 
 
-def _shenton_basis(t, intercept):
-    columns = [np.log(t), t]
+def _basis(law, t, intercept):
+    """The design columns of the Shenton (ln t, t) or logarithmic (ln t) law at ``t``,
+    the constant first when ``intercept``."""
+    columns = [np.log(t), t] if law == "shenton" else [np.log(t)]
     if intercept:
         columns.insert(0, np.ones_like(t))
     return np.stack(columns, axis=1)
@@ -152,9 +166,9 @@ def lstsq_shared(design, values):
 
 
 def fit_residual(displacements, times, law="shenton", intercept=False):
-    """Fit the ``law`` ("linear", Eq. 16, or "shenton", Eq. 17-21) to the residual
-    displacements (k + 1, N, 3) [m] recorded at ``times`` (k + 1,) (module docstring);
-    returns a ResidualTrend."""
+    """Fit the ``law`` ("linear", Eq. 16; "shenton", Eq. 17-21; "logarithmic", c + a ln
+    t, which always has its constant) to the residual displacements (k + 1, N, 3) [m]
+    recorded at ``times`` (k + 1,) (module docstring); returns a ResidualTrend."""
     u, t = _check(displacements, times)
     if law == "linear":
         if intercept:
@@ -162,13 +176,16 @@ def fit_residual(displacements, times, law="shenton", intercept=False):
         rate = (u[-1] - u[0]) / (t[-1] - t[0])
         fitted = u[0] + (t[1:] - t[0])[:, None, None] * rate
         return ResidualTrend(law, False, rate[None], t, u[-1].copy(), u[1:] - fitted)
-    if law != "shenton":
+    if law not in LAWS:
         raise ValueError(f"law must be one of {LAWS}, got {law!r}")
     if t[1] <= 0:
-        raise ValueError("Shenton's law needs times > 0 (it takes ln t)")
-    design = _shenton_basis(t[1:], intercept)
-    coefficients = lstsq_shared(design, u[1:])
-    fitted = np.einsum("tm,mnd->tnd", design, coefficients)
+        raise ValueError(f"the {law} law needs times > 0 (it takes ln t)")
+    intercept = intercept or law == "logarithmic"
+    # Shenton's law is fitted to the records p = 1..k (Eq. 18); the logarithmic law,
+    # whose constant frees it from the reference, to every record where ln t exists
+    used = slice(1, None) if law == "shenton" or t[0] <= 0 else slice(None)
+    coefficients = lstsq_shared(_basis(law, t[used], intercept), u[used])
+    fitted = np.einsum("tm,mnd->tnd", _basis(law, t[1:], intercept), coefficients)
     return ResidualTrend(law, bool(intercept), coefficients, t, u[-1].copy(), u[1:] - fitted)
 
 

@@ -115,10 +115,11 @@ class CyclicSettings(SettleSettings):
     plate_material: str | None = _f(None, "plate material; default: walls.material")
     residuals: bool = _f(True, "write every grain's residual displacement at each cycle "
                          "end (residuals/cycle_NNNNNN.npy)")
-    extrapolation: Literal["none", "linear", "shenton"] = _f(
+    extrapolation: Literal["none", "linear", "shenton", "logarithmic"] = _f(
         "none", "the sequential procedure (Karrech Fig. 10): after initial_cycles, rounds "
         "of computed_cycles computed and extrapolated_cycles extrapolated by this "
-        "estimator (Eq. 16 or 17-21), then relaxed (Eq. 29); none: every cycle computed")
+        "estimator (Eq. 16, Eq. 17-21, or c + a ln t with t on the loading clock), then "
+        "relaxed (Eq. 29); none: every cycle computed")
     initial_cycles: Int = _f(10, "k_i: cycles computed before the first extrapolation; "
                              ">= 1", ge=1)
     computed_cycles: Int = _f(10, "k: cycles computed per round, the training data of its "
@@ -126,7 +127,7 @@ class CyclicSettings(SettleSettings):
     extrapolated_cycles: Int = _f(10, "h: cycles extrapolated in the first round; >= 1",
                                   ge=1)
     fit_time: Literal["loading", "window"] = _f(
-        "loading", "the time origin of Shenton's law in a round's fit: loading (t = pT "
+        "loading", "the time origin of the Shenton and logarithmic laws in a round's fit: loading (t = pT "
         "from the start of the cycles, the paper's t + pT) or window (t = pT from the "
         "opening of the round's window, as if each round restarted the law: its log term "
         "then describes the window's own decay instead of tying the fit to the law's "

@@ -65,9 +65,8 @@ import time
 
 import numpy as np
 
-from ..analysis.settlement import forecast_errors, relative_error
+from ..analysis.settlement import LAWS, forecast_errors, relative_error
 
-LAWS = ("linear", "shenton")
 FULL = "full_dem"
 # cycles ahead at which full DEM's settlement is forecast from its own past (forecast_floor)
 FORECAST_HORIZONS = (50, 100)
