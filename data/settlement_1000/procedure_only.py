@@ -4,9 +4,10 @@ not run again):
 
     python procedure_only.py SEED OUT [KEY=VALUE ...]
 
-KEY=VALUE (TOML values) go on the retry settings; PERTURB=1e-9 in the environment runs
-it from the bed with one grain moved by that much, as a replica.  Writes OUT/bed,
-OUT/runs/linear_ki30_k10_h20 and OUT/record.json (the run's record, with its path).
+KEY=VALUE (TOML values) go on the retry settings (``protocol.extrapolation`` chooses
+the estimator, linear by default); PERTURB=1e-9 in the environment runs it from the bed
+with one grain moved by that much, as a replica.  Writes OUT/bed,
+OUT/runs/ESTIMATOR_ki30_k10_h20 and OUT/record.json (the run's record, with its path).
 """
 import json
 import os
@@ -28,11 +29,12 @@ def main(seed, out, settings):
     for item in settings:
         key, _, text = item.partition("=")
         overrides[key] = tomllib.loads(f"v = {text}")["v"]
+    estimator = overrides.pop("protocol.extrapolation", "linear")
     data, runs, _, _ = study_plan(grains=430, cycles=1000, initial_cycles=30, ks=[10],
-                                  hs=[20], k_fixed=10, h_fixed=20, estimator="linear",
+                                  hs=[20], k_fixed=10, h_fixed=20, estimator=estimator,
                                   mode="fully", overrides=overrides, replicas=0,
                                   procedure_replicas=0)
-    name = "linear_ki30_k10_h20"
+    name = f"{estimator}_ki30_k10_h20"
     out.mkdir(parents=True, exist_ok=True)
     prepare_bed(data, out / "bed")
     record = run_from_bed(out / "bed", runs[name], out / "runs" / name, threads=1,
