@@ -8,7 +8,7 @@ import pytest
 from typer.testing import CliRunner
 
 from graindyn.cli import app
-from graindyn.studies.settlement_beds import (pool_beds, procedure_runs,
+from graindyn.studies.settlement_beds import (error_shares, pool_beds, procedure_runs,
                                               settlement_after_jumps)
 
 RUN = "linear_ki30_k10_h20"
@@ -119,3 +119,63 @@ def test_the_settlement_after_a_jump_is_set_against_full_dem_s_by_lag():
     for lag in (2, 3, 4):
         assert sums[lag] == pytest.approx([0.5e-3, 1e-3, 1])
     assert sums[5] == [0.0, 0.0, 0]
+
+
+def _log_path(cycles, a=1e-3, c=2e-3):
+    """Full DEM settling as c + a ln N [m] at every cycle N in ``cycles``."""
+    return [(n, c + a * math.log(n), "computed") for n in cycles]
+
+
+@pytest.mark.parametrize("estimator", ["linear", "logarithmic"])
+def test_a_procedure_that_follows_full_dem_has_only_the_estimator_s_share(estimator):
+    """Full DEM settles as c + a ln N; a procedure computes cycles 1-30 and 41-60 on
+    full DEM's path and jumps 30 -> 41 and 60 -> 100 as its estimator carries full
+    DEM's last 10 cycles (k = 10, 50 Hz).  The logarithmic law follows the path
+    exactly: no share at all.  Eq. 16 carries the window's mean rate a ln(30/20)/10 on
+    over 11 cycles and a ln(60/50)/10 over 40 where the path gains a ln(41/30) and a
+    ln(100/60): its share is that overshoot, by hand; the bed's share is zero."""
+    a, period = 1e-3, 0.02
+    full = _log_path(range(1, 101), a)
+    settle = dict((n, s) for n, s, _ in full)
+    if estimator == "linear":
+        jumps = [(30, 41, a * math.log(30 / 20) * 11 / 10), (60, 100, a * math.log(60 / 50) * 4)]
+    else:
+        jumps = [(30, 41, a * math.log(41 / 30)), (60, 100, a * math.log(100 / 60))]
+    path = [p for p in full if p[0] <= 30]
+    path.append((41, settle[30] + jumps[0][2], "extrapolated"))
+    path += [(n, s - settle[41] + path[-1][1], "computed") for n, s, _ in full if 41 < n <= 60]
+    path.append((100, path[-1][1] + jumps[1][2], "extrapolated"))
+    shares = error_shares(path, full, estimator, 10, period)
+    assert shares["jumps"] == 2
+    own = sum(j[2] for j in jumps) - a * (math.log(41 / 30) + math.log(100 / 60))
+    assert shares["extrapolated"] == pytest.approx(own, rel=1e-9, abs=1e-15)
+    assert shares["estimator"] == pytest.approx(own, rel=1e-9, abs=1e-15)
+    assert abs(shares["bed"]) < 1e-15
+    if estimator == "linear":
+        assert own == pytest.approx(a * (math.log(1.5) * 1.1 - math.log(41 / 30)
+                                         + math.log(1.2) * 4 - math.log(100 / 60)))
+        assert own > 1e-4
+    else:
+        assert abs(own) < 1e-15
+
+
+def test_a_bed_that_settles_slower_after_a_jump_has_a_bed_share():
+    """Full DEM settles 1 um a cycle; the procedure jumps 30 -> 50 exactly, then its
+    bed settles 0.5 um a cycle over cycles 51-60 and the next jump, 60 -> 100, carries
+    that rate on: Eq. 16 on full DEM's path has no share, and the bed's is the 20 um
+    the slower window cost the second jump (its 5 um over the window are no jump's)."""
+    full = [(n, 1e-6 * n, "computed") for n in range(1, 101)]
+    path = [p for p in full if p[0] <= 30] + [(50, 50e-6, "extrapolated")]
+    path += [(n, 50e-6 + 0.5e-6 * (n - 50), "computed") for n in range(51, 61)]
+    path.append((100, path[-1][1] + 0.5e-6 * 40, "extrapolated"))
+    shares = error_shares(path, full, "linear", 10, 0.02)
+    assert abs(shares["estimator"]) < 1e-15
+    assert shares["bed"] == pytest.approx(-20e-6, rel=1e-9)
+    assert shares["extrapolated"] == pytest.approx(-20e-6, rel=1e-9)
+
+
+def test_a_window_full_dem_does_not_cover_is_refused():
+    full = [(n, 1e-6 * n, "computed") for n in range(5, 101)]
+    path = [p for p in full if p[0] <= 10] + [(20, 20e-6, "extrapolated")]
+    with pytest.raises(ValueError, match="lacks cycles"):
+        error_shares(path, full, "linear", 10, 0.02)

@@ -25,6 +25,7 @@ import pathlib
 
 import numpy as np
 
+from ..analysis.settlement import fit_residual
 from .settlement import FULL, REPLICA_TAG, ensemble_figure, ensemble, perturbation_of
 
 SEED = "run.seed"        # the override that makes another bed of the same settings
@@ -82,6 +83,47 @@ def settlement_after_jumps(path, reference, most=15):
         row[1] += full[c1] - full[c0]
         row[2] += 1
     return sums
+
+
+def jumps_of(path):
+    """(a, b) of each jump of a procedure ``path`` [(cycle, settlement [m], source)]: a
+    the cycle it starts from, b the first cycle after it."""
+    path = sorted(path)
+    return [(c0, c1) for (c0, _, _), (c1, _, source) in zip(path, path[1:])
+            if source != "computed" or c1 != c0 + 1]
+
+
+def error_shares(path, reference, estimator, window, period):
+    """Where the error of a procedure run's extrapolated cycles comes from: ``path`` and
+    ``reference`` as in settlement_after_jumps, ``estimator`` the run's law
+    (analysis.settlement.LAWS), ``window`` its computed cycles k and ``period`` [s] the
+    load's.  For each jump from cycle a to b the run's own window is replayed on full
+    DEM's path: the estimator fitted to full DEM's settlement at cycles a - k..a, on
+    the loading's clock t = cycle x period as the procedure fits it, and carried to
+    b.  Returns, summed over the
+    jumps [m]: "extrapolated", the run's increments over the jumps less full DEM's over
+    the same cycles; "estimator", the replayed increments less full DEM's (what the
+    jumps would add if every window read full DEM's own path: the estimator's share);
+    "bed", their difference (what the jumped, relaxed bed's windows read differently
+    from full DEM's over the same cycles: the bed's share); and "jumps"."""
+    run = {c: s for c, s, _ in path}
+    full = {c: s for c, s, _ in reference}
+    shares = {"extrapolated": 0.0, "estimator": 0.0, "bed": 0.0, "jumps": 0}
+    for a, b in jumps_of(path):
+        cycles = np.arange(a - window, a + 1)
+        missing = [int(c) for c in cycles if c not in full] + ([b] if b not in full else [])
+        if missing:
+            raise ValueError(f"the jump {a} -> {b}: full DEM's path lacks cycles "
+                             f"{missing} (its window and end)")
+        settlement = np.zeros((cycles.size, 1, 3))
+        settlement[:, 0, 2] = [full[c] for c in cycles]
+        trend = fit_residual(settlement - settlement[0], period * cycles, estimator)
+        replayed = float(trend.extrapolate(period * b)[0, 2] - trend.last[0, 2])
+        shares["extrapolated"] += (run[b] - run[a]) - (full[b] - full[a])
+        shares["estimator"] += replayed - (full[b] - full[a])
+        shares["jumps"] += 1
+    shares["bed"] = shares["extrapolated"] - shares["estimator"]
+    return shares
 
 
 def pool_beds(folders, out, run=None, at=None):
