@@ -27,7 +27,7 @@ the plate's height) and the whole state kept (OUT/cycleC0.pkl).  From each state
 
 Prints, for each state and variant, the plate's descent [um] in each cycle after, and
 full DEM's over the same cycles.  The relaxation tolerance is the study's (1e-3
-weights)."""
+weights); numba's threads are chosen as for a run of the bed (one below 1000 grains)."""
 import copy
 import csv
 import pathlib
@@ -37,6 +37,7 @@ import sys
 
 import numpy as np
 
+from graindyn import _threads as threading_policy
 from graindyn.analysis.settlement import smooth_increments
 from graindyn.config.load import load
 from graindyn.output.rundir import RunDirectory
@@ -56,6 +57,7 @@ def main(study, out, starts, h, after, variants):
         shutil.copy(study / "bed" / "run" / "meta.json", folder / "meta.json")
         shutil.copy(study / "bed" / "settled.h5", folder / "checkpoints" / "checkpoint.h5")
     protocol, engine, meta, _, _ = restored(RunDirectory(folder), load(folder / "config.toml"))
+    threading_policy.use(0, engine.state.n)     # as the study's runs: one thread here
     protocol.log, protocol.folder = (lambda line: None), None
     set_motion = engine.set_motion        # the plate stays a piston between the calls
     engine.set_motion = lambda k, m: None if m.kind == "fixed" else set_motion(k, m)
