@@ -23,7 +23,10 @@ the plate's height) and the whole state kept (OUT/cycleC0.pkl).  From each state
   AFTER cycles from cycle C0 + H;
 * ``fit:WIDTH:RELAXATION``: the same, but every grain and the plate put where the
   linear estimator (Eq. 16) fitted to full DEM's cycles C0 - 10 to C0 extrapolates
-  them H cycles on, as the procedure's jump does (k = 10).
+  them H cycles on, as the procedure's jump does (k = 10);
+* ``chain:N:WIDTH:RELAXATION``: N such jumps in succession, each followed by AFTER
+  cycles (11: the restart cycle and a window of 10), the second and later ones fitted
+  to the branch's own last 10 cycles, as the procedure's rounds are.
 
 Prints, for each state and variant, the plate's descent [um] in each cycle after, and
 full DEM's over the same cycles.  The relaxation tolerance is the study's (1e-3
@@ -99,6 +102,42 @@ def main(study, out, starts, h, after, variants):
         state["cycle"] = to_cycle
         return to_cycle
 
+    def chain(snapshot, state0, c0, jumps, width, relaxation):
+        """``jumps`` jumps in succession, each fitted as the procedure fits it to the
+        last WINDOW cycles (full DEM's before the first, the branch's own after the
+        others), carried H cycles, relaxed, then AFTER cycles computed; prints each."""
+        engine.restore(snapshot)
+        state = copy.deepcopy(state0)
+        reference = np.asarray(state0["reference"])
+        window = [reference + np.load(full / "residuals" / f"cycle_{c:06d}.npy")
+                  for c in (c0 - WINDOW, c0)]
+        plates = [plate_full[c0 - WINDOW], plate_full[c0]]
+        cycle = c0
+        for j in range(jumps):
+            here = engine.state.positions.copy()
+            increments = (window[1] - window[0]) * h / WINDOW
+            if width > 0:
+                increments = smooth_increments(
+                    here, increments, width * float(np.mean(engine.state.radii)),
+                    planes=[(p.index, p.at) for p in cycles.vessel.symmetry])
+            offset = engine.walls.offset[plate].copy()
+            offset[-1 if cycles.vessel.dim == 3 else 1] += (plates[1] - plates[0]) * h / WINDOW
+            cycle = relax(state, here + increments, offset, here, relaxation, cycle + h)
+            heights, positions = [cycles._plate(engine, plate)], {}
+            for _ in range(after):
+                cycles.p.cycles = cycle + 1
+                cycles.run(engine, state)
+                cycle += 1
+                heights.append(state["rows"][-1]["plate_height_m"])
+                positions[cycle] = engine.state.positions.copy()
+            reference_descent = -np.diff([plate_full[c] for c in
+                                          range(cycle - after, cycle + 1)])
+            print(f"{c0} chain jump {j + 1} to {cycle - after}: "
+                  + " ".join(f"{1e6 * d:.2f}" for d in -np.diff(heights)) + " | "
+                  + " ".join(f"{1e6 * d:.2f}" for d in reference_descent), flush=True)
+            window = [positions[cycle - WINDOW], positions[cycle]]
+            plates = [heights[-1 - WINDOW], heights[-1]]
+
     print("C0 variant: descent in each cycle after [um] | full DEM's")
     for c0 in starts:
         with open(out / f"cycle{c0}.pkl", "rb") as f:
@@ -106,6 +145,9 @@ def main(study, out, starts, h, after, variants):
         reference = np.asarray(state0["reference"])
         for variant in variants:
             kind, *args = variant.split(":")
+            if kind == "chain":
+                chain(snapshot, state0, c0, int(args[0]), float(args[1]), args[2])
+                continue
             if kind == "continue":
                 prepare = lambda state: state["cycle"]
             elif kind == "rest":
