@@ -34,9 +34,13 @@ class RunInterrupted(RuntimeError):
     """A run stopped by a signal after writing its checkpoint."""
 
     def __init__(self, signum, rundir, time):
-        self.signum = signum
+        self.signum, self.rundir, self.time = signum, rundir, time
         super().__init__(f"interrupted by {signal.Signals(signum).name} at t = {time:.6g} s; "
                          f"checkpoint written: resume with 'graindyn run --resume {rundir}'")
+
+    def __reduce__(self):
+        # a run in a worker process (a study's jobs) hands it back to the parent
+        return (type(self), (self.signum, self.rundir, self.time))
 
 
 def check(config: Config):

@@ -232,6 +232,36 @@ def test_an_interrupted_run_resumes_from_its_checkpoint_and_sums_its_times(study
     assert again["sessions"] == 1 and again["path"] == summary["paths"][FULL]
 
 
+def test_a_signal_to_a_study_of_two_jobs_stops_both_workers(study, tmp_path):
+    """SIGTERM to the study alone while two runs go on in its two worker processes:
+    both workers get it, write their checkpoints and stop (study_partial.json closed),
+    no other run starts, and the study raises RunInterrupted."""
+    out, _, _ = study
+    new = tmp_path / "study"
+    new.mkdir()
+    shutil.copytree(out / "bed", new / "bed")
+    logs = [new / "runs" / name / "run.log" for name in (FULL, "shenton_ki2_k2_h2")]
+
+    def terminate():
+        deadline = time.time() + 600.0
+        while time.time() < deadline and not all(
+                log.exists() and "cycle 1:" in log.read_text() for log in logs):
+            time.sleep(0.01)
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    stop = threading.Thread(target=terminate)
+    stop.start()
+    with pytest.raises(RunInterrupted):
+        run_settlement_study(new, quick=True, ks=(2, 3), hs=(3,), jobs=2,
+                             echo=lambda *a: None)
+    stop.join()
+    assert sorted(d.name for d in (new / "runs").iterdir()) == sorted(
+        log.parent.name for log in logs)
+    for log in logs:
+        partial = json.loads((log.parent / PARTIAL).read_text())
+        assert partial["closed"] and partial["sessions"] == 1, log.parent.name
+
+
 def test_a_bed_of_another_config_is_refused(study):
     out, _, _ = study
     result = CliRunner().invoke(app, ["study", "settlement", "--quick", "--out", str(out),

@@ -55,12 +55,17 @@ t_full / t_procedure = 1 + G / 100.
 
 >>> run_settlement_study(pathlib.Path("runs/settlement"), quick=True)  # doctest: +SKIP
 """
+import contextlib
 import copy
 import csv
 import json
 import math
+import multiprocessing
+import os
 import pathlib
 import shutil
+import signal
+import threading
 import time
 
 import numpy as np
@@ -586,6 +591,49 @@ def compare(run, full, run_dir, full_dir):
 
 
 # ------------------------------------------------------------------ the study
+_STOPPED = None         # a worker's event: set once the study is interrupted
+
+
+def _worker_start(stopped):
+    global _STOPPED
+    _STOPPED = stopped
+
+
+def _worker_run(bed, settings, folder, threads, perturbation):
+    """run_from_bed in a study's worker, unless the study was interrupted before this
+    run started (then RunInterrupted, nothing written)."""
+    from ..runner import RunInterrupted
+
+    if _STOPPED.is_set():
+        raise RunInterrupted(signal.SIGTERM, folder, 0.0)
+    return run_from_bed(bed, settings, folder, threads=threads, perturbation=perturbation)
+
+
+@contextlib.contextmanager
+def _signals_to_workers(stopped):
+    """While a study's runs go on in worker processes, SIGTERM and SIGINT received by
+    the study set ``stopped`` (no queued run starts) and are sent on to every worker,
+    whose run then writes its checkpoint and stops (runner.RunInterrupted) as a run
+    alone does; a signal to the study alone would otherwise leave its workers running
+    on, and a study started again would compute the same runs twice into the same
+    folders.  Main thread only."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def forward(signum, frame):
+        stopped.set()
+        for child in multiprocessing.active_children():
+            os.kill(child.pid, signum)
+
+    saved = {sig: signal.signal(sig, forward) for sig in (signal.SIGTERM, signal.SIGINT)}
+    try:
+        yield
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
+
+
 def study_plan(*, quick=False, base=None, grains=None, cycles=None, initial_cycles=None,
                ks=None, hs=None, k_fixed=None, h_fixed=None, estimator="shenton",
                mode="fully", overrides=None, replicas=0, procedure_replicas=0):
@@ -694,17 +742,25 @@ def run_settlement_study(out, *, quick=False, base=None, grains=None, cycles=Non
     records = {}
     if jobs > 1:
         import concurrent.futures
-        import multiprocessing
 
+        context = multiprocessing.get_context("spawn")
+        stopped = context.Event()
         with concurrent.futures.ProcessPoolExecutor(
-                jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
-            futures = {pool.submit(run_from_bed, bed, settings, out / "runs" / name,
-                                   threads=threads, perturbation=perturbation_of(name)): name
+                jobs, mp_context=context, initializer=_worker_start,
+                initargs=(stopped,)) as pool, _signals_to_workers(stopped):
+            futures = {pool.submit(_worker_run, bed, settings, out / "runs" / name,
+                                   threads, perturbation_of(name)): name
                        for name, settings in runs.items()}
-            for future in concurrent.futures.as_completed(futures):
-                records[futures[future]] = future.result()
-                if keep is not None:
-                    keep_run(out / "runs" / futures[future], keep)
+            try:
+                for future in concurrent.futures.as_completed(futures):
+                    records[futures[future]] = future.result()
+                    if keep is not None:
+                        keep_run(out / "runs" / futures[future], keep)
+            except BaseException:
+                stopped.set()                   # no run starts after an interruption
+                for future in futures:
+                    future.cancel()
+                raise
         records = {name: records[name] for name in runs}
     else:
         for name, settings in runs.items():
