@@ -24,9 +24,13 @@ the plate's height) and the whole state kept (OUT/cycleC0.pkl).  From each state
 * ``fit:WIDTH:RELAXATION``: the same, but every grain and the plate put where the
   linear estimator (Eq. 16) fitted to full DEM's cycles C0 - 10 to C0 extrapolates
   them H cycles on, as the procedure's jump does (k = 10);
-* ``chain:N:WIDTH:RELAXATION``: N such jumps in succession, each followed by AFTER
-  cycles (11: the restart cycle and a window of 10), the second and later ones fitted
-  to the branch's own last 10 cycles, as the procedure's rounds are.
+* ``chain:N:WIDTH:RELAXATION[:SOURCE]``: N such jumps in succession, each followed by
+  AFTER cycles (11: the restart cycle and a window of 10), the second and later ones
+  fitted to the branch's own last 10 cycles, as the procedure's rounds are (SOURCE
+  ``own``, the default), or to full DEM's last 10 cycles before the branch's cycle
+  (``full``: the increments full DEM makes there, put on the branch's grains), which
+  tells a bed slowed by jumps in succession from one slowed by what its own window
+  reads.
 
 Prints, for each state and variant, the plate's descent [um] in each cycle after, and
 full DEM's over the same cycles.  The relaxation tolerance is the study's (1e-3
@@ -102,16 +106,19 @@ def main(study, out, starts, h, after, variants):
         state["cycle"] = to_cycle
         return to_cycle
 
-    def chain(snapshot, state0, c0, jumps, width, relaxation):
+    def chain(snapshot, state0, c0, jumps, width, relaxation, source):
         """``jumps`` jumps in succession, each fitted as the procedure fits it to the
-        last WINDOW cycles (full DEM's before the first, the branch's own after the
-        others), carried H cycles, relaxed, then AFTER cycles computed; prints each."""
+        last WINDOW cycles (full DEM's before the first, after the others the branch's
+        own, or full DEM's with ``source == "full"``), carried H cycles, relaxed, then
+        AFTER cycles computed; prints each."""
         engine.restore(snapshot)
         state = copy.deepcopy(state0)
         reference = np.asarray(state0["reference"])
-        window = [reference + np.load(full / "residuals" / f"cycle_{c:06d}.npy")
-                  for c in (c0 - WINDOW, c0)]
-        plates = [plate_full[c0 - WINDOW], plate_full[c0]]
+
+        def full_window(c):
+            return ([reference + np.load(full / "residuals" / f"cycle_{i:06d}.npy")
+                     for i in (c - WINDOW, c)], [plate_full[c - WINDOW], plate_full[c]])
+        window, plates = full_window(c0)
         cycle = c0
         for j in range(jumps):
             here = engine.state.positions.copy()
@@ -132,11 +139,14 @@ def main(study, out, starts, h, after, variants):
                 positions[cycle] = engine.state.positions.copy()
             reference_descent = -np.diff([plate_full[c] for c in
                                           range(cycle - after, cycle + 1)])
-            print(f"{c0} chain jump {j + 1} to {cycle - after}: "
+            print(f"{c0} chain{'' if source == 'own' else '-' + source} jump {j + 1} to {cycle - after}: "
                   + " ".join(f"{1e6 * d:.2f}" for d in -np.diff(heights)) + " | "
                   + " ".join(f"{1e6 * d:.2f}" for d in reference_descent), flush=True)
-            window = [positions[cycle - WINDOW], positions[cycle]]
-            plates = [heights[-1 - WINDOW], heights[-1]]
+            if source == "full":
+                window, plates = full_window(cycle)
+            else:
+                window = [positions[cycle - WINDOW], positions[cycle]]
+                plates = [heights[-1 - WINDOW], heights[-1]]
 
     print("C0 variant: descent in each cycle after [um] | full DEM's")
     for c0 in starts:
@@ -146,7 +156,8 @@ def main(study, out, starts, h, after, variants):
         for variant in variants:
             kind, *args = variant.split(":")
             if kind == "chain":
-                chain(snapshot, state0, c0, int(args[0]), float(args[1]), args[2])
+                chain(snapshot, state0, c0, int(args[0]), float(args[1]), args[2],
+                      args[3] if len(args) > 3 else "own")
                 continue
             if kind == "continue":
                 prepare = lambda state: state["cycle"]
