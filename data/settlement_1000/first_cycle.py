@@ -28,9 +28,10 @@ the plate's height) and the whole state kept (OUT/cycleC0.pkl).  From each state
   AFTER cycles (11: the restart cycle and a window of 10), the second and later ones
   fitted to the branch's own last 10 cycles, as the procedure's rounds are (SOURCE
   ``own``, the default), or to full DEM's last 10 cycles before the branch's cycle
-  (``full``: the increments full DEM makes there, put on the branch's grains), which
-  tells a bed slowed by jumps in succession from one slowed by what its own window
-  reads.
+  (``full``: the increments full DEM makes there, put on the branch's grains), or
+  made of full DEM's own increments over the H cycles the jump spans (``exact``: no
+  estimate at all), which tells a bed slowed by jumps in succession from one slowed
+  by what its own window reads.
 
 Prints, for each state and variant, the plate's descent [um] in each cycle after, and
 full DEM's over the same cycles.  The relaxation tolerance is the study's (1e-3
@@ -109,26 +110,33 @@ def main(study, out, starts, h, after, variants):
     def chain(snapshot, state0, c0, jumps, width, relaxation, source):
         """``jumps`` jumps in succession, each fitted as the procedure fits it to the
         last WINDOW cycles (full DEM's before the first, after the others the branch's
-        own, or full DEM's with ``source == "full"``), carried H cycles, relaxed, then
-        AFTER cycles computed; prints each."""
+        own, or full DEM's with ``source == "full"``; full DEM's own increments over
+        the jump with ``source == "exact"``), carried H cycles, relaxed, then AFTER
+        cycles computed; prints each."""
         engine.restore(snapshot)
         state = copy.deepcopy(state0)
         reference = np.asarray(state0["reference"])
 
-        def full_window(c):
-            return ([reference + np.load(full / "residuals" / f"cycle_{i:06d}.npy")
-                     for i in (c - WINDOW, c)], [plate_full[c - WINDOW], plate_full[c]])
-        window, plates = full_window(c0)
+        def full_window(c, span):
+            """Full DEM's positions and plate at cycles c - WINDOW and c (span
+            "window") or c and c + H (span "ahead"), and the factor that turns their
+            difference into the jump's increments."""
+            ends = (c - WINDOW, c) if span == "window" else (c, c + h)
+            positions = [reference + np.load(full / "residuals" / f"cycle_{i:06d}.npy")
+                         for i in ends]
+            return positions, [plate_full[i] for i in ends], \
+                h / WINDOW if span == "window" else 1.0
+        window, plates, scale = full_window(c0, "window")
         cycle = c0
         for j in range(jumps):
             here = engine.state.positions.copy()
-            increments = (window[1] - window[0]) * h / WINDOW
+            increments = (window[1] - window[0]) * scale
             if width > 0:
                 increments = smooth_increments(
                     here, increments, width * float(np.mean(engine.state.radii)),
                     planes=[(p.index, p.at) for p in cycles.vessel.symmetry])
             offset = engine.walls.offset[plate].copy()
-            offset[-1 if cycles.vessel.dim == 3 else 1] += (plates[1] - plates[0]) * h / WINDOW
+            offset[-1 if cycles.vessel.dim == 3 else 1] += (plates[1] - plates[0]) * scale
             cycle = relax(state, here + increments, offset, here, relaxation, cycle + h)
             heights, positions = [cycles._plate(engine, plate)], {}
             for _ in range(after):
@@ -142,8 +150,9 @@ def main(study, out, starts, h, after, variants):
             print(f"{c0} chain{'' if source == 'own' else '-' + source} jump {j + 1} to {cycle - after}: "
                   + " ".join(f"{1e6 * d:.2f}" for d in -np.diff(heights)) + " | "
                   + " ".join(f"{1e6 * d:.2f}" for d in reference_descent), flush=True)
-            if source == "full":
-                window, plates = full_window(cycle)
+            if source != "own":
+                window, plates, scale = full_window(
+                    cycle, "window" if source == "full" else "ahead")
             else:
                 window = [positions[cycle - WINDOW], positions[cycle]]
                 plates = [heights[-1 - WINDOW], heights[-1]]
