@@ -3,7 +3,7 @@ line per bed and the mean over the beds, for one or more settings side by side.
 
     python beds_figure.py OUT.png LABEL=FOLDER[,FOLDER...] [LABEL=FOLDER,... ...]
 
-Each FOLDER holds a paths.csv (README) with a full_dem run and one procedure run.
+Each FOLDER holds a paths.csv (README) with one full DEM run and one procedure run.
 Draws, per setting, (s_procedure / s_full - 1) at every cycle the procedure computed
 or jumped to, and prints the mean and standard deviation over the beds at cycle 1000
 (the last)."""
@@ -18,11 +18,17 @@ import numpy as np                  # noqa: E402
 
 
 def relative_path(folder):
-    """(cycles, s_procedure / s_full - 1) of the procedure run in ``folder``."""
-    full, own = {}, {}
+    """(cycles, s_procedure / s_full - 1) of the procedure run in ``folder`` against
+    its full DEM run (a replica's, full_dem_replica_N, where that is the one held)."""
+    runs = {}
     for row in csv.DictReader(open(folder / "paths.csv")):
-        target = full if row["run"] == "full_dem" else own
-        target[int(row["cycle"])] = float(row["settlement_m"])
+        runs.setdefault(row["run"], {})[int(row["cycle"])] = float(row["settlement_m"])
+    references = [name for name in runs if name.startswith("full_dem")]
+    procedures = [name for name in runs if not name.startswith("full_dem")]
+    if len(references) != 1 or len(procedures) != 1:
+        raise SystemExit(f"{folder}: one full DEM run and one procedure run expected, "
+                         f"found {sorted(runs)}")
+    full, own = runs[references[0]], runs[procedures[0]]
     cycles = np.array(sorted(c for c in own if c in full))
     return cycles, np.array([own[c] / full[c] - 1.0 for c in cycles])
 

@@ -30,8 +30,12 @@ the plate's height) and the whole state kept (OUT/cycleC0.pkl).  From each state
   ``own``, the default), or to full DEM's last 10 cycles before the branch's cycle
   (``full``: the increments full DEM makes there, put on the branch's grains), or
   made of full DEM's own increments over the H cycles the jump spans (``exact``: no
-  estimate at all), which tells a bed slowed by jumps in succession from one slowed
-  by what its own window reads.
+  estimate at all), or fitted to the mean rates of the branch's last two windows
+  (``pooled``: the one before the last jump and the one after it).  The first three
+  tell a bed slowed by jumps in succession from one slowed by what its own window
+  reads; each jump's window is printed too, as the mean descent rate of the bottom,
+  middle and top third of the grains and their mean lateral rate, against full
+  DEM's over the same cycles.
 
 Prints, for each state and variant, the plate's descent [um] in each cycle after, and
 full DEM's over the same cycles.  The relaxation tolerance is the study's (1e-3
@@ -112,7 +116,10 @@ def main(study, out, starts, h, after, variants):
         last WINDOW cycles (full DEM's before the first, after the others the branch's
         own, or full DEM's with ``source == "full"``; full DEM's own increments over
         the jump with ``source == "exact"``), carried H cycles, relaxed, then AFTER
-        cycles computed; prints each."""
+        cycles computed (``pooled``: each jump after the first fitted to the mean rates of
+        the branch's last two windows, the one before the last jump's and the one after
+        it); prints each, and the profile of the window after it against full DEM's over
+        the same cycles."""
         engine.restore(snapshot)
         state = copy.deepcopy(state0)
         reference = np.asarray(state0["reference"])
@@ -126,17 +133,36 @@ def main(study, out, starts, h, after, variants):
                          for i in ends]
             return positions, [plate_full[i] for i in ends], \
                 h / WINDOW if span == "window" else 1.0
+
+        def profile(ends):
+            """A window's increments [um per cycle], smoothed as the jump smooths
+            them about the branch's grains: the mean descent of the bottom, middle and
+            top third of the grains by height, and the mean horizontal length."""
+            here = engine.state.positions
+            rate = (ends[1] - ends[0]) / WINDOW
+            if width > 0:
+                rate = smooth_increments(
+                    here, rate, width * float(np.mean(engine.state.radii)),
+                    planes=[(p.index, p.at) for p in cycles.vessel.symmetry])
+            thirds = np.array_split(np.argsort(here[:, -1]), 3)
+            return " ".join(f"{-1e6 * rate[t, -1].mean():.3f}" for t in thirds) + \
+                f" lateral {1e6 * np.hypot(rate[:, 0], rate[:, 1]).mean():.3f}"
         window, plates, scale = full_window(c0, "window")
+        earlier = None          # the window before this one, for source == "pooled"
         cycle = c0
         for j in range(jumps):
             here = engine.state.positions.copy()
-            increments = (window[1] - window[0]) * scale
+            field, descent = window[1] - window[0], plates[1] - plates[0]
+            if source == "pooled" and earlier is not None:  # the two windows' mean rates
+                field = 0.5 * (field + earlier[0][1] - earlier[0][0])
+                descent = 0.5 * (descent + earlier[1][1] - earlier[1][0])
+            increments = field * scale
             if width > 0:
                 increments = smooth_increments(
                     here, increments, width * float(np.mean(engine.state.radii)),
                     planes=[(p.index, p.at) for p in cycles.vessel.symmetry])
             offset = engine.walls.offset[plate].copy()
-            offset[-1 if cycles.vessel.dim == 3 else 1] += (plates[1] - plates[0]) * scale
+            offset[-1 if cycles.vessel.dim == 3 else 1] += descent * scale
             cycle = relax(state, here + increments, offset, here, relaxation, cycle + h)
             heights, positions = [cycles._plate(engine, plate)], {}
             for _ in range(after):
@@ -150,12 +176,16 @@ def main(study, out, starts, h, after, variants):
             print(f"{c0} chain{'' if source == 'own' else '-' + source} jump {j + 1} to {cycle - after}: "
                   + " ".join(f"{1e6 * d:.2f}" for d in -np.diff(heights)) + " | "
                   + " ".join(f"{1e6 * d:.2f}" for d in reference_descent), flush=True)
-            if source != "own":
+            own = [positions[cycle - WINDOW], positions[cycle]]
+            print(f"{c0} chain{'' if source == 'own' else '-' + source} window {j + 1} "
+                  f"field: {profile(own)} | full DEM's: "
+                  f"{profile(full_window(cycle, 'window')[0])}", flush=True)
+            if source in ("full", "exact"):
                 window, plates, scale = full_window(
                     cycle, "window" if source == "full" else "ahead")
             else:
-                window = [positions[cycle - WINDOW], positions[cycle]]
-                plates = [heights[-1 - WINDOW], heights[-1]]
+                earlier = (window, plates)
+                window, plates = own, [heights[-1 - WINDOW], heights[-1]]
 
     print("C0 variant: descent in each cycle after [um] | full DEM's")
     for c0 in starts:
