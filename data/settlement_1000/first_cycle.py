@@ -56,9 +56,14 @@ from graindyn.output.rundir import RunDirectory
 from graindyn.runner import restored
 
 WINDOW = 10     # computed cycles of the procedure's window [-]
+SOURCES = ("own", "full", "exact", "pooled")    # what a chain's later jumps are made of
 
 
 def main(study, out, starts, h, after, variants):
+    for variant in variants:        # refused before any cycle is computed
+        kind, *args = variant.split(":")
+        if kind == "chain" and len(args) > 3 and args[3] not in SOURCES:
+            raise SystemExit(f"chain source {args[3]!r}: one of {', '.join(SOURCES)}")
     full = study / "runs" / "full_dem"
     plate_full = {int(r["cycle"]): float(r["plate_height_m"])
                   for r in csv.DictReader(open(full / "cycles.csv"))}
@@ -147,6 +152,8 @@ def main(study, out, starts, h, after, variants):
             thirds = np.array_split(np.argsort(here[:, -1]), 3)
             return " ".join(f"{-1e6 * rate[t, -1].mean():.3f}" for t in thirds) + \
                 f" lateral {1e6 * np.hypot(rate[:, 0], rate[:, 1]).mean():.3f}"
+
+        label = f"{c0} chain" + ("" if source == "own" else f"-{source}")
         window, plates, scale = full_window(c0, "window")
         earlier = None          # the window before this one, for source == "pooled"
         cycle = c0
@@ -173,12 +180,11 @@ def main(study, out, starts, h, after, variants):
                 positions[cycle] = engine.state.positions.copy()
             reference_descent = -np.diff([plate_full[c] for c in
                                           range(cycle - after, cycle + 1)])
-            print(f"{c0} chain{'' if source == 'own' else '-' + source} jump {j + 1} to {cycle - after}: "
+            print(f"{label} jump {j + 1} to {cycle - after}: "
                   + " ".join(f"{1e6 * d:.2f}" for d in -np.diff(heights)) + " | "
                   + " ".join(f"{1e6 * d:.2f}" for d in reference_descent), flush=True)
             own = [positions[cycle - WINDOW], positions[cycle]]
-            print(f"{c0} chain{'' if source == 'own' else '-' + source} window {j + 1} "
-                  f"field: {profile(own)} | full DEM's: "
+            print(f"{label} window {j + 1} field: {profile(own)} | full DEM's: "
                   f"{profile(full_window(cycle, 'window')[0])}", flush=True)
             if source in ("full", "exact"):
                 window, plates, scale = full_window(
