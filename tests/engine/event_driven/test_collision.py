@@ -31,13 +31,28 @@ def contact_point_velocity(n, va, vb, wa, wb, ra, rb):
     return va - vb + np.cross(ra * wa + rb * wb, n)
 
 
+def turned(q, w, t):
+    """The unit quaternion q (w, x, y, z) after turning at constant spin w [rad/s] for t
+    [s]: the Hamilton product (cos(a/2), sin(a/2) w/|w|) q, a = |w| t."""
+    a = np.linalg.norm(w) * t
+    axis = w / np.linalg.norm(w)
+    p0, (p1, p2, p3) = math.cos(a / 2), math.sin(a / 2) * axis
+    q0, q1, q2, q3 = q
+    return np.array([p0 * q0 - p1 * q1 - p2 * q2 - p3 * q3,
+                     p0 * q1 + p1 * q0 + p2 * q3 - p3 * q2,
+                     p0 * q2 - p1 * q3 + p2 * q0 + p3 * q1,
+                     p0 * q3 + p1 * q2 - p2 * q1 + p3 * q0])
+
+
 @pytest.mark.parametrize("dim", [3, 2])
 @pytest.mark.parametrize("e_n, e_s", RESTITUTIONS)
 def test_a_collision_in_the_engine_follows_perez(dim, e_n, e_s):
     """Two grains of different size and density thrown at each other off-centre with
     spin: after the engine's collision their velocities and spins are Eq. 9-10's (1e-12),
     the contact points' relative velocity is (-e_n v_n, e_s v_s) of Eq. 5-6, and linear
-    momentum and the angular momentum about the contact point are conserved."""
+    momentum and the angular momentum about the contact point are conserved.  Run in
+    two parts, the collision in the second: each grain's orientation is turned at its
+    spin before the collision until it, and at its spin after from then on."""
     rng = np.random.default_rng(7 + dim)
     ra, rb = 1e-3, 1.6e-3
     dirn = np.array([1.0, 0.35, 0.2 if dim == 3 else 0.0])
@@ -60,7 +75,9 @@ def test_a_collision_in_the_engine_follows_perez(dim, e_n, e_s):
     b, c, a = d @ u, d @ d - (ra + rb) ** 2, u @ u
     t = c / (-b + math.sqrt(b * b - a * c))
     at_a, at_b = pa + va * t, pb + vb * t
-    engine.run(time=t * 1.5)
+    engine.run(time=t * 0.7)
+    assert engine.collisions == 0
+    engine.run(time=t * 0.8)
     assert engine.collisions == 1
     want = perez(m[0], m[1], ra, rb, inertia[0], inertia[1], va, vb, wa, wb, at_a, at_b,
                  e_n, e_s)
@@ -83,6 +100,10 @@ def test_a_collision_in_the_engine_follows_perez(dim, e_n, e_s):
                    for k, x in enumerate((at_a, at_b)))
     np.testing.assert_allclose(angular(s.velocities, s.angular_velocities),
                                angular((va, vb), (wa, wb)), rtol=1e-10, atol=1e-20)
+    for k, spin in enumerate((wa, wb)):
+        expected = turned(turned(np.array([1.0, 0, 0, 0]), spin, t), want[2 * k + 1],
+                          0.5 * t)
+        np.testing.assert_allclose(s.orientations[k], expected, atol=1e-12)
 
 
 def test_the_energy_lost_splits_into_its_normal_and_tangential_parts():

@@ -273,7 +273,7 @@ class EventDriven(RigidGrains):
                                self._walls(), self._box(), self.tables, self.clock,
                                self.counters, end, self._straight())
         if status == ev.COLLAPSED:
-            ev.synchronise(self._grains(), self.time)
+            ev.synchronise(self._grains(), self.time, start)
             self.state.time = self.time
             raise SimulationError(
                 f"inelastic collapse at t = {self.time:.9g} s: {ev.SAME_TIME_LIMIT} "
@@ -281,7 +281,7 @@ class EventDriven(RigidGrains):
                 "collapse: choose collapse = 'tc' or 'speed'), or touching rough grains "
                 "that a wall drives at once (choose collapse = 'tc' or 'speed': their "
                 "simultaneous collisions are smooth)")
-        ev.synchronise(self._grains(), end)
+        ev.synchronise(self._grains(), end, start)
         self.clock[ev.TIME] = end
         self.state.time = end
         self.state.step = self.step

@@ -7,7 +7,8 @@ WALL with wall ``partner``, RECHECK a wall search to take up again (flight.wall_
 NONE nothing ahead) and its next cell crossing (through ``Calendar.face`` = 2 axis +
 (1 upper, 0 lower)); the calendar is keyed by the earlier of the two.  Grains are advanced lazily: each has its own clock
 ``Grains.local_time`` and is brought to the present only when an event involves it,
-or at a synchronisation (``synchronise``) where the engine pauses.
+or at a synchronisation (``synchronise``) where the engine pauses; its orientation
+only when its spin changes, or at a synchronisation (_turn).
 
 Cells: a grid of cells at least a largest diameter wide, so a grain can touch only
 grains of its own and the adjacent cells; leaving a cell is an event, after which the
@@ -46,29 +47,40 @@ SAME_TIME_LIMIT = 100_000        # events at one instant that make a collapse
 
 @block_body
 def _advance(g, i, t, straight):
-    """Bring grain i from its own time to time t [s] by free flight (parabola, constant
-    spin, the orientation turned exactly by w dt).  ``straight`` (a constant in the
-    caller's copy: no gravity and no held grain) drops the terms that are then zero."""
+    """Bring grain i's centre from its own time to time t [s] by free flight (a parabola;
+    its orientation is turned apart, by _turn, when its spin changes or at a
+    synchronisation: spin is constant in flight, so the turn is exact whenever it is
+    done, and most events, the cell crossings, never touch it).  ``straight`` (a
+    constant in the caller's copy: no gravity and no held grain) drops the terms that
+    are then zero."""
     dt = t - g.local_time[i]
     if straight:
         if dt != 0.0:
             for d in range(3):
                 g.positions[i, d] += dt * g.velocities[i, d]
-            q = g.orientations[i]
-            w = g.angular_velocities[i]
-            q[0], q[1], q[2], q[3] = rotate_quaternion(q[0], q[1], q[2], q[3], w[0] * dt,
-                                                       w[1] * dt, w[2] * dt)
         g.local_time[i] = t
         return
     if dt != 0.0 and g.fixed[i] == 0:
         for d in range(3):
             g.positions[i, d] += dt * (g.velocities[i, d] + 0.5 * dt * g.gravity[d])
             g.velocities[i, d] += dt * g.gravity[d]
+    g.local_time[i] = t
+
+
+@block_body
+def _turn(g, i, t, since):
+    """Turn grain i's orientation by w (t - t0) (the exact rotation), t0 [s] the time it
+    was left at: its last collision, or ``since`` [s], the time every grain was last
+    brought to, if later.  Called before its spin changes (then its last collision is
+    set to t) and at a synchronisation."""
+    if g.fixed[i] != 0:
+        return
+    dt = t - max(g.last_collision[i], since)
+    w = g.angular_velocities[i]
+    if dt != 0.0 and (w[0] != 0.0 or w[1] != 0.0 or w[2] != 0.0):
         q = g.orientations[i]
-        w = g.angular_velocities[i]
         q[0], q[1], q[2], q[3] = rotate_quaternion(q[0], q[1], q[2], q[3], w[0] * dt,
                                                    w[1] * dt, w[2] * dt)
-    g.local_time[i] = t
 
 
 @block_body
@@ -369,9 +381,12 @@ def _since(g, i, now):
 
 
 @block_body
-def _pair_collision(g, tables, clock, counters, box, i, j, now, straight):
-    """Carry out the collision of grains i and j at ``now`` (both there): Pérez Eq. 1-10
+def _pair_collision(g, tables, clock, counters, box, i, j, now, since, straight):
+    """Carry out the collision of grains i and j at ``now`` (both there; their
+    orientations left at their last collisions or ``since``, _turn): Pérez Eq. 1-10
     through collision.collision_impulse, energy and virial bookkeeping."""
+    _turn(g, i, now, since)
+    _turn(g, j, now, since)
     dx, dy, dz, ux, uy, uz = _separation(g, box, i, j, now, straight)
     size = math.sqrt(dx * dx + dy * dy + dz * dz)
     nx = -dx / size              # from a = i to b = j (Pérez Eq. 1)
@@ -419,10 +434,11 @@ def _pair_collision(g, tables, clock, counters, box, i, j, now, straight):
 
 
 @block_body
-def _wall_collision(g, walls, tables, clock, counters, i, w, now):
+def _wall_collision(g, walls, tables, clock, counters, i, w, now, since):
     """Carry out the collision of grain i with wall w at ``now`` (the wall as a grain of
-    infinite mass moving at its velocity then): Pérez Eq. 1-10, the wall's impulse and
-    the work it does on the grain."""
+    infinite mass moving at its velocity then; the orientation as in _pair_collision):
+    Pérez Eq. 1-10, the wall's impulse and the work it does on the grain."""
+    _turn(g, i, now, since)
     x = g.positions[i]
     gap, mx, my, mz, wx, wy, wz = flight.wall_gap(
         walls.kind, walls.geometry, walls.base, walls.motion_kind, walls.motion, w, now,
@@ -511,6 +527,7 @@ def run_events(g, cal, cells, walls, box, tables, clock, counters, end, straight
 @block_body
 def _event_loop(g, cal, cells, walls, box, tables, clock, counters, end, straight):
     """run_events with ``straight`` a constant."""
+    since = clock[TIME]         # every grain is there (engine._prepare)
     last = -math.inf
     while True:
         i = front(cal)
@@ -541,11 +558,13 @@ def _event_loop(g, cal, cells, walls, box, tables, clock, counters, end, straigh
                 predict(g, cal, cells, walls, box, clock, i, now, straight)
                 continue
             _advance(g, j, now, straight)
-            _pair_collision(g, tables, clock, counters, box, i, j, now, straight)
+            _pair_collision(g, tables, clock, counters, box, i, j, now, since,
+                            straight)
             predict(g, cal, cells, walls, box, clock, i, now, straight)
             predict(g, cal, cells, walls, box, clock, j, now, straight)
         elif kind == WALL:
-            _wall_collision(g, walls, tables, clock, counters, i, cal.partner[i], now)
+            _wall_collision(g, walls, tables, clock, counters, i, cal.partner[i], now,
+                            since)
             predict(g, cal, cells, walls, box, clock, i, now, straight)
         else:
             counters[RECHECKS] += 1
@@ -553,10 +572,12 @@ def _event_loop(g, cal, cells, walls, box, tables, clock, counters, end, straigh
 
 
 @driver
-def synchronise(g, t):
-    """Bring every grain to time t [s] (free flight)."""
+def synchronise(g, t, since):
+    """Bring every grain to time t [s] (free flight), ``since`` [s] the time of the
+    synchronisation before (orientations: _turn)."""
     for i in range(g.radii.size):
         _advance(g, i, t, np.bool_(False))
+        _turn(g, i, t, since)
 
 
 @driver
