@@ -223,18 +223,58 @@ def _crossing(g, cells, box, i, straight):
 
 
 @block_body
+def _scan_cell(g, cells, box, i, j, now, sx, sy, sz, wx, wy, wz, best, partner, count,
+               straight):
+    """_scan_pairs over the list of one cell, whose first grain is j, seen through the
+    image that shifts the separation by (sx, sy, sz) [m] (wrapped to its minimum image
+    along the axes where wx, wy, wz)."""
+    reach_i = g.radii[i]
+    while j >= 0:
+        if j != i:
+            dx, dy, dz, ux, uy, uz = _relative(g, i, j, now, straight)
+            dx += sx
+            dy += sy
+            dz += sz
+            if wx:
+                dx = _wrap(box, 0, dx)
+            if wy:
+                dy = _wrap(box, 1, dy)
+            if wz:
+                dz = _wrap(box, 2, dz)
+            t = flight.pair_time(dx, dy, dz, ux, uy, uz, reach_i + g.radii[j])
+            if t < best:
+                best = t
+                partner = j
+                count = g.collisions[j]
+        j = cells.next[j]
+    return best, partner, count
+
+
+@block_body
 def _scan_pairs(g, cells, box, i, now, fx, nx, fy, ny, fz, nz, best, partner, count,
                 straight):
     """The earliest collision [s from now] of grain i with the grains of the block of
     cells fx + a, a < nx (unwrapped, _cell_range; and so for y, z), if earlier than
     ``best``: the updated (best, partner, partner's counter).  Each cell's periodic
-    image is a shift of the separation, so no grain pair is wrapped one by one."""
+    image is a shift of the separation, so no grain pair is wrapped one by one.  A
+    block inside the grid (most of them) is walked without images: in a dilute gas
+    most cells are empty, and stepping through a cell costs about what testing a
+    grain does."""
     nx_ = cells.count[0]
     ny_ = cells.count[1]
     wx = _wrapped(cells, box, 0)
     wy = _wrapped(cells, box, 1)
     wz = _wrapped(cells, box, 2)
-    reach_i = g.radii[i]
+    if (fx >= 0 and fx + nx <= nx_ and fy >= 0 and fy + ny <= ny_ and fz >= 0
+            and fz + nz <= cells.count[2] and not (wx or wy or wz)):
+        for z in range(fz, fz + nz):
+            for y in range(fy, fy + ny):
+                row = (z * ny_ + y) * nx_ + fx
+                for c in range(row, row + nx):
+                    best, partner, count = _scan_cell(
+                        g, cells, box, i, cells.head[c], now, 0.0, 0.0, 0.0, False,
+                        False, False, best, partner, count, straight)
+        return best, partner, count
     for a in range(nz):
         z, sz = _image(cells, box, fz + a, 2)
         for b in range(ny):
@@ -242,25 +282,9 @@ def _scan_pairs(g, cells, box, i, now, fx, nx, fy, ny, fz, nz, best, partner, co
             row = (z * ny_ + y) * nx_
             for e in range(nx):
                 x, sx = _image(cells, box, fx + e, 0)
-                j = cells.head[row + x]
-                while j >= 0:
-                    if j != i:
-                        dx, dy, dz, ux, uy, uz = _relative(g, i, j, now, straight)
-                        dx += sx
-                        dy += sy
-                        dz += sz
-                        if wx:
-                            dx = _wrap(box, 0, dx)
-                        if wy:
-                            dy = _wrap(box, 1, dy)
-                        if wz:
-                            dz = _wrap(box, 2, dz)
-                        t = flight.pair_time(dx, dy, dz, ux, uy, uz, reach_i + g.radii[j])
-                        if t < best:
-                            best = t
-                            partner = j
-                            count = g.collisions[j]
-                    j = cells.next[j]
+                best, partner, count = _scan_cell(
+                    g, cells, box, i, cells.head[row + x], now, sx, sy, sz, wx, wy, wz,
+                    best, partner, count, straight)
     return best, partner, count
 
 
