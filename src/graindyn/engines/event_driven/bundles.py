@@ -8,7 +8,8 @@ import numpy as np
 
 class Grains(NamedTuple):
     """positions, velocities, angular_velocities (N, 3) [m], [m/s], [rad/s], each grain
-    at its own time local_time (N,) [s];  orientations (N, 4) unit quaternions;
+    at its own time local_time (N,) [s];  orientations (N, 4) unit quaternions, each at
+    its grain's last collision or the last pause, whichever is later (events._turn);
     radii, masses, inertias (N,) [m], [kg], [kg m^2];  materials (N,) int32;  fixed (N,)
     int8 (held grains: infinite mass);  collisions (N,) int64, each grain's collision
     counter;  last_collision (N,) [s] the time of its last collision (-inf before any);
